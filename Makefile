@@ -1,0 +1,23 @@
+# projection_server: every target first brings the environment up to date (idempotent).
+#   make run                         start the node
+#   make test                        run the whole test suite
+#   make query Q='member(X, [a])'    send a query to a running node
+#   make bench                       run the benchmarks in bench/
+.PHONY: setup run test query bench
+SHELL := /bin/bash
+
+setup:
+	@tools/bootstrap.sh
+
+run: setup
+	@tools/with_env.sh projection_server --ros-args \
+	  --params-file install/share/projection_server/config/projection_server.yaml $(ARGS)
+
+test: setup
+	@tools/with_env.sh tools/run_tests.sh $(ARGS)
+
+query: setup
+	@tools/with_env.sh prolog_query "$$Q" $(ARGS)
+
+bench: setup
+	@tools/with_env.sh python bench/query_latency.py $(ARGS)

@@ -1,0 +1,160 @@
+"""The projection_server ROS 2 node: a thin layer over :mod:`projection_server.queries`.
+
+Services (relative to the node's name, by default ``/projection_server/...``):
+
+- ``~/query`` (projection_interfaces/srv/PrologQuery)
+- ``~/next_solution`` (projection_interfaces/srv/PrologNextSolution)
+- ``~/finish`` (projection_interfaces/srv/PrologFinish)
+- ``~/ping`` (std_srvs/srv/Trigger): liveness, with the number of live queries.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQuery
+import rclpy
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from std_srvs.srv import Trigger
+
+from projection_server import prolog_bridge
+from projection_server.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryManager,
+                                       ServerLimits)
+
+__all__ = ['ProjectionServerNode', 'main']
+
+_MODES = {PrologQuery.Request.ALL_SOLUTIONS: ALL,
+          PrologQuery.Request.INCREMENTAL: INCREMENTAL,
+          PrologQuery.Request.ONCE: ONCE}
+
+_STATUS = {'solution': PrologNextSolution.Response.OK,
+           'none': PrologNextSolution.Response.NO_SOLUTION,
+           'wrong_id': PrologNextSolution.Response.WRONG_ID,
+           'error': PrologNextSolution.Response.QUERY_FAILED}
+
+
+class ProjectionServerNode(Node):
+    """Answers Prolog queries sent as service requests."""
+
+    def __init__(self, **kwargs):
+        super().__init__('projection_server', **kwargs)
+        self.declare_parameter('max_engines', 8, ParameterDescriptor(
+            description='Most Prolog engines (live queries) at once', read_only=True))
+        self.declare_parameter('default_timeout', 120.0, ParameterDescriptor(
+            description='Seconds a solution may take when the request gives 0'))
+        self.declare_parameter('max_solutions', 100, ParameterDescriptor(
+            description='Cap on ALL_SOLUTIONS answers when the request gives 0'))
+        self.declare_parameter('idle_timeout', 300.0, ParameterDescriptor(
+            description='Seconds after which an idle INCREMENTAL query is closed'))
+        self.declare_parameter('sandbox', True, ParameterDescriptor(
+            description='Refuse goals library(sandbox) cannot prove safe'))
+        self.add_on_set_parameters_callback(self._check_parameters)
+
+        prolog_bridge.load()
+        self.queries = QueryManager(self._limits())
+
+        group = ReentrantCallbackGroup()
+        self.create_service(PrologQuery, '~/query', self._on_query, callback_group=group)
+        self.create_service(PrologNextSolution, '~/next_solution', self._on_next,
+                            callback_group=group)
+        self.create_service(PrologFinish, '~/finish', self._on_finish, callback_group=group)
+        self.create_service(Trigger, '~/ping', self._on_ping, callback_group=group)
+        self.create_timer(1.0, self.queries.reap,
+                          callback_group=MutuallyExclusiveCallbackGroup())
+        self.get_logger().info(
+            f'answering Prolog queries on {self.get_fully_qualified_name()}/query '
+            f'(max_engines={self.queries.limits.max_engines})')
+
+    def _limits(self, overrides: dict | None = None) -> ServerLimits:
+        value = {p: self.get_parameter(p).value for p in
+                 ('max_engines', 'default_timeout', 'max_solutions', 'idle_timeout', 'sandbox')}
+        value.update(overrides or {})
+        return ServerLimits(max_engines=int(value['max_engines']),
+                            default_timeout=float(value['default_timeout']),
+                            max_solutions=int(value['max_solutions']),
+                            idle_timeout=float(value['idle_timeout']),
+                            sandbox=bool(value['sandbox']))
+
+    def _check_parameters(self, params) -> SetParametersResult:
+        changes = {}
+        for p in params:
+            if p.name in ('default_timeout', 'idle_timeout') and not float(p.value) > 0:
+                return SetParametersResult(successful=False, reason=f'{p.name} must be > 0')
+            if p.name == 'max_solutions' and int(p.value) < 1:
+                return SetParametersResult(successful=False, reason='max_solutions must be >= 1')
+            changes[p.name] = p.value
+        if hasattr(self, 'queries'):
+            self.queries.limits = self._limits(changes)
+        return SetParametersResult(successful=True)
+
+    # -- service callbacks: request -> plain call -> response ------------------------
+    def _on_query(self, request, response):
+        mode = _MODES.get(request.mode)
+        answer = self.queries.query(mode or f'mode {request.mode}', request.id, request.query,
+                                    request.timeout, request.max_solutions)
+        response.ok = answer.ok
+        response.message = answer.message
+        response.id = answer.id
+        response.error_kind = answer.kind
+        response.error = answer.error
+        response.solutions = answer.solutions
+        response.truncated = answer.truncated
+        return response
+
+    def _on_next(self, request, response):
+        outcome = self.queries.next_solution(request.id)
+        response.status = _STATUS[outcome.status]
+        response.solution = outcome.bindings
+        response.error_kind = outcome.kind
+        response.message = outcome.message
+        return response
+
+    def _on_finish(self, request, response):
+        try:
+            response.closed = self.queries.finish(request.id)
+            response.ok = True
+            response.message = f'closed {response.closed} quer{"y" if response.closed == 1 else "ies"}'
+        except QueryError as exc:
+            response.ok = False
+            response.message = exc.message
+        return response
+
+    def _on_ping(self, request, response):
+        response.success = True
+        response.message = json.dumps(self.queries.stats())
+        return response
+
+    def destroy_node(self):
+        if hasattr(self, 'queries'):
+            self.queries.shutdown()
+        super().destroy_node()
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = ProjectionServerNode()
+        # One executor thread per engine, plus spares so that finish/next/ping
+        # requests are served while every engine is busy.
+        executor = MultiThreadedExecutor(num_threads=node.queries.limits.max_engines + 4)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except prolog_bridge.BridgeError as exc:
+        print(f'projection_server: {exc}', file=sys.stderr)
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
