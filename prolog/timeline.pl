@@ -1,0 +1,548 @@
+:- module(timeline,
+          [ timeline_create/2,          % +Data:dict, -Timeline
+            timeline_remove/1,          % +Timeline
+            timeline_exists/1,          % ?Timeline
+            timeline_property/2,        % ?Timeline, ?Property
+            timeline_fluent_intervals/3, % ?Fluent, -Intervals, +Timeline
+            holds/3,                    % ?Fluent, ?Time, +Timeline
+            occurs/3,                   % ?Event, ?Time, +Timeline
+            quantity/3,                 % ?Quantity, ?Value, +Timeline
+            current_timeline/1,         % -Timeline
+            with_timeline/2,            % +Timeline, :Goal
+            holds/2,                    % ?Fluent, ?Time
+            occurs/2,                   % ?Event, ?Time
+            quantity/2,                 % ?Quantity, ?Value
+            typeOf/2,                   % ?Term, ?Type
+            objOf/2                     % ?Term, ?Object
+          ]).
+:- reexport(temporal).
+:- autoload(library(apply), [maplist/3]).
+:- autoload(library(aggregate), [aggregate_all/3]).
+:- autoload(library(error),
+            [ must_be/2, type_error/2, existence_error/2 ]).
+:- autoload(library(lists), [list_to_set/2, member/2]).
+:- autoload(library(pairs), [pairs_values/2]).
+:- autoload(library(solution_sequences), [distinct/2]).
+
+/** <module> Timelines: fluents and events of one projection
+
+A _timeline_ is what one simulation-based projection produced, translated
+into first-order terms (section II of Kunze, Dolha & Beetz, IROS 2011):
+
+  - _fluents_, terms such as `contact(egg1, gripper)` or `broken(egg1)`,
+    that hold over maximal intervals `interval(Start, End)`;
+  - _events_, terms such as `drop(egg1)`, that happen at a point `T` (when
+    they start and end at the same time) or over an `interval(Start, End)`;
+  - _quantities_, terms such as `max_force(egg1)`, with a value.
+
+Times are seconds from the start of the projection and follow
+library(temporal), which this module re-exports so that queries can relate
+times (before/2, after/2, Allen's relations, ...).
+
+timeline_create/2 stores the translated log under a new timeline id and
+holds/3, occurs/3 and quantity/3 query a given timeline:
+
+```
+?- timeline_create(_{fluents: [[broken, [egg1], 2.1, 5.0]],
+                     events:  [[drop, [egg1], 2.0, 2.0]]}, TL),
+   occurs(drop(Egg), T1, TL), holds(broken(Egg), T2, TL).
+TL = timeline_1, Egg = egg1, T1 = 2.0, T2 = interval(2.1, 5.0).
+```
+
+*Patterns*: an atom Name given as the fluent, event or quantity stands for
+any term named Name, whatever its arguments, as the paper writes
+`\+ occurs(break, _, Timeline)` for "no break(_) event".  The atom stays
+unbound to the stored term.  Other terms are unified with the stored terms.
+
+*Query form*: holds/2, occurs/2, quantity/2, typeOf/2 and objOf/2 evaluate
+on the _current timeline_, so that the paper's query runs as written:
+
+```
+?- occurs(Evt, T1), typeOf(Evt, dropping), objOf(Evt, egg1),
+   after(T2, T1), holds(F, T2), objOf(F, egg1).
+```
+
+The current timeline is the one selected with with_timeline/2 for the
+duration of its goal, else the most recently created timeline that still
+exists.  The selection is a backtrackable global variable (b_setval/2),
+which is private to each thread and engine, so concurrent queries do not
+see each other's selection; but "most recently created" is shared by all
+threads, so a client that runs queries concurrently with projections
+should select its timeline with with_timeline/2 or use the 3-argument
+forms.
+
+In the query above after/2 is called with T2 unbound: library(temporal)
+then delays the test until T2 is bound, holds/2 binds T2 to each maximal
+interval of each fluent, and the test keeps those intervals that lie
+strictly after T1.  So F ranges over the fluents that began after the drop;
+a fluent that began before the event and still holds after it is not an
+answer.
+*/
+
+:- dynamic
+    tl_registered/2,                    % Timeline, Sequence number
+    tl_fluent/3,                        % Timeline, Term, interval(S, E)
+    tl_event/3,                         % Timeline, Term, Time
+    tl_quantity/3,                      % Timeline, Term, Value
+    tl_meta/2.                          % Timeline, Dict
+
+                 /*******************************
+                 *         THE STORE            *
+                 *******************************/
+
+%!  timeline_create(+Data:dict, -Timeline:atom) is det.
+%
+%   Store the translated log Data as a new timeline with the fresh id
+%   Timeline (`timeline_1`, `timeline_2`, ...).  Data is the dict
+%   `_{fluents: Fs, events: Es, quantities: Qs, meta: M}` of the contract
+%   (docs/contracts.md); `quantities` and `meta` may be left out:
+%
+%     - Fs and Es are lists of `[Name, Args, Start, End]`, Qs a list of
+%       `[Name, Args, Value]`.  Names and entity arguments may be atoms or
+%       strings; they become atoms.  Numeric arguments stay numbers.  The
+%       stored term is `Name(Args...)`, or the atom Name if Args is `[]`.
+%     - Start and End are numbers with Start =< End; End may be `inf`.
+%       An event whose Start and End are equal (within time_epsilon/1)
+%       happens at the point Start.
+%     - M is a dict, kept as the timeline property meta(M).
+%
+%   The new timeline becomes the current timeline (see the module doc).
+%   Records that occur twice are stored once.
+%
+%   @error existence_error(key, fluents) or existence_error(key, events) if
+%          Data lacks that key.
+%   @error type_error(fluent_record, R), type_error(event_record, R) or
+%          type_error(quantity_record, R) if a record R has the wrong shape.
+%   @error type_error(atomic, A) if an argument is not an atom, string or
+%          number; type_error(time, _) or domain_error(time, _) for bad
+%          times (see temporal:must_be_time/1).
+
+timeline_create(Data, TL) :-
+    must_be(dict, Data),
+    required_key(fluents, Data, Fs0),
+    required_key(events, Data, Es0),
+    optional_key(quantities, Data, [], Qs0),
+    optional_key(meta, Data, _{}, Meta),
+    must_be(list, Fs0),
+    must_be(list, Es0),
+    must_be(list, Qs0),
+    must_be(dict, Meta),
+    maplist(interval_record(fluent_record), Fs0, Fs1),
+    maplist(interval_record(event_record), Es0, Es1),
+    maplist(quantity_record, Qs0, Qs1),
+    list_to_set(Fs1, Fs),
+    list_to_set(Es1, Es2),
+    maplist(event_time, Es2, Es),
+    list_to_set(Qs1, Qs),
+    with_mutex(timeline_store, flag(timeline_seq, N0, N0+1)),
+    N is N0+1,
+    format(atom(TL), 'timeline_~d', [N]),
+    catch(store(TL, N, Fs, Es, Qs, Meta), E,
+          ( remove_facts(TL), throw(E) )).
+
+required_key(Key, Dict, Value) :-
+    (   get_dict(Key, Dict, Value)
+    ->  true
+    ;   existence_error(key, Key)
+    ).
+
+optional_key(Key, Dict, Default, Value) :-
+    (   get_dict(Key, Dict, Value0) -> Value = Value0 ; Value = Default ).
+
+% The registration is asserted last, so other threads never see a
+% timeline whose facts are still being added.
+store(TL, N, Fs, Es, Qs, Meta) :-
+    forall(member(T-I, Fs), assertz(tl_fluent(TL, T, I))),
+    forall(member(T-Time, Es), assertz(tl_event(TL, T, Time))),
+    forall(member(T-V, Qs), assertz(tl_quantity(TL, T, V))),
+    assertz(tl_meta(TL, Meta)),
+    assertz(tl_registered(TL, N)).
+
+interval_record(Type, Record, Term-interval(S, E)) :-
+    (   is_list(Record), Record = [Name, Args, S, E0]
+    ->  must_be(list, Args),
+        record_term(Name, Args, Term),
+        open_end(E0, E),
+        must_be_time(interval(S, E))
+    ;   type_error(Type, Record)
+    ).
+
+quantity_record(Record, Term-Value) :-
+    (   is_list(Record), Record = [Name, Args, Value]
+    ->  must_be(list, Args),
+        record_term(Name, Args, Term),
+        must_be(ground, Value)
+    ;   type_error(quantity_record, Record)
+    ).
+
+record_term(Name0, Args0, Term) :-
+    must_be(text, Name0),
+    atom_string(Name, Name0),
+    maplist(record_arg, Args0, Args),
+    Term =.. [Name|Args].
+
+record_arg(X, X) :- number(X), !.
+record_arg(X, A) :- atom(X), !, A = X.
+record_arg(X, A) :- string(X), !, atom_string(A, X).
+record_arg(X, _) :- type_error(atomic, X).
+
+open_end(E, inf) :- float(E), E =:= inf, !.
+open_end(E, E).
+
+event_time(T-interval(S, E), T-Time) :-
+    (   E \== inf, equals(S, E) -> Time = S ; Time = interval(S, E) ).
+
+%!  timeline_remove(+Timeline) is det.
+%
+%   Remove Timeline and all its facts.  If it was the current timeline, the
+%   most recent one left becomes current.
+%
+%   @error existence_error(timeline, Timeline) if there is no such timeline.
+
+timeline_remove(TL) :-
+    must_be_timeline(TL),
+    retractall(tl_registered(TL, _)),
+    remove_facts(TL).
+
+remove_facts(TL) :-
+    retractall(tl_fluent(TL, _, _)),
+    retractall(tl_event(TL, _, _)),
+    retractall(tl_quantity(TL, _, _)),
+    retractall(tl_meta(TL, _)).
+
+%!  timeline_exists(?Timeline) is nondet.
+%
+%   True if Timeline is a stored timeline.  Enumerates them in the order of
+%   creation if Timeline is unbound.
+%
+%   @error type_error(atom, Timeline) if Timeline is bound to a non-atom.
+
+timeline_exists(TL) :-
+    (   var(TL)
+    ->  tl_registered(TL, _)
+    ;   must_be(atom, TL),
+        tl_registered(TL, _),
+        !
+    ).
+
+%!  timeline_property(?Timeline, ?Property) is nondet.
+%
+%   Property is a property of the stored Timeline:
+%     - meta(Dict): the `meta` dict it was created with (`_{}` if none)
+%     - fluents(Count), events(Count), quantities(Count): number of
+%       fluent intervals, events and quantities stored.
+
+timeline_property(TL, Prop) :-
+    timeline_exists(TL),
+    property(Prop, TL).
+
+property(meta(M), TL) :- tl_meta(TL, M).
+property(fluents(N), TL) :- aggregate_all(count, tl_fluent(TL, _, _), N).
+property(events(N), TL) :- aggregate_all(count, tl_event(TL, _, _), N).
+property(quantities(N), TL) :- aggregate_all(count, tl_quantity(TL, _, _), N).
+
+%!  timeline_fluent_intervals(?Fluent, -Intervals:list, +Timeline) is nondet.
+%
+%   Intervals are the maximal intervals over which Fluent holds in Timeline,
+%   sorted by start time.  Enumerates the distinct fluents that unify with
+%   Fluent (no pattern reading of atoms here: Fluent is bound to the term).
+%
+%   @error existence_error(timeline, Timeline) if there is no such timeline.
+%   @error type_error(callable, Fluent) if Fluent is not a term.
+
+timeline_fluent_intervals(F, Intervals, TL) :-
+    must_be_timeline(TL),
+    must_be_pattern(F),
+    (   ground(F)
+    ->  once(tl_fluent(TL, F, _))
+    ;   distinct(F, tl_fluent(TL, F, _))
+    ),
+    findall(S-I, ( tl_fluent(TL, F, I), I = interval(S, _) ), Pairs),
+    keysort(Pairs, Sorted),
+    pairs_values(Sorted, Intervals).
+
+                 /*******************************
+                 *       HOLDS AND OCCURS       *
+                 *******************************/
+
+%!  holds(?Fluent, ?Time, +Timeline) is nondet.
+%
+%   Fluent holds at Time in Timeline.
+%
+%     - Time not ground: enumerate the fluents matching Fluent with each of
+%       their maximal intervals `interval(Start, End)`, unified with Time.
+%     - Time a point: the fluents that hold at that point (interval ends
+%       included), each once.
+%     - Time an interval: the fluents that hold throughout it, each once.
+%
+%   Fluent may be an atom pattern (see the module doc).  With Fluent and
+%   Time ground this is a test (semidet).
+%
+%   @error instantiation_error if Timeline is unbound.
+%   @error existence_error(timeline, Timeline) if there is no such timeline.
+%   @error type_error(callable, Fluent) if Fluent is bound to a non-term
+%          (a number or string).
+%   @error type_error(time, Time) if Time is ground but not a time.
+
+holds(F, T, TL) :-
+    must_be_timeline(TL),
+    must_be_pattern(F),
+    (   ground(T)
+    ->  must_be_time(T),
+        (   ground(F)
+        ->  once(holds_at(F, T, TL))
+        ;   distinct(F, holds_at(F, T, TL))
+        )
+    ;   tl_fluent(TL, Term, I),
+        matches(F, Term),
+        T = I
+    ).
+
+holds_at(F, T, TL) :-
+    tl_fluent(TL, Term, I),
+    matches(F, Term),
+    time_inside(T, I).
+
+%!  occurs(?Event, ?Time, +Timeline) is nondet.
+%
+%   Event happens at Time in Timeline.  The time of an event is a point
+%   `T` if it starts and ends at the same time, else `interval(S, E)`.
+%
+%     - Time not ground: enumerate the events matching Event with their
+%       times, unified with Time.
+%     - Time a point: the events happening at that point (an event with an
+%       interval happens at every point of it), each once.
+%     - Time an interval: the events whose time lies within it, each once.
+%
+%   Event may be an atom pattern (see the module doc):
+%   `occurs(break, _, TL)` is true if a break(_) event happened.
+%
+%   @error as for holds/3, with type_error(callable, Event).
+
+occurs(Ev, T, TL) :-
+    must_be_timeline(TL),
+    must_be_pattern(Ev),
+    (   ground(T)
+    ->  must_be_time(T),
+        (   ground(Ev)
+        ->  once(occurs_at(Ev, T, TL))
+        ;   distinct(Ev, occurs_at(Ev, T, TL))
+        )
+    ;   tl_event(TL, Term, Time),
+        matches(Ev, Term),
+        T = Time
+    ).
+
+occurs_at(Ev, T, TL) :-
+    tl_event(TL, Term, Time),
+    matches(Ev, Term),
+    (   number(T)
+    ->  time_inside(T, Time)
+    ;   time_inside(Time, T)
+    ).
+
+%!  quantity(?Quantity, ?Value, +Timeline) is nondet.
+%
+%   Quantity, a term such as `max_force(egg1)` built like fluents, has
+%   Value in Timeline.  Quantity may be an atom pattern (see the module
+%   doc).
+%
+%   @error as for holds/3, with type_error(callable, Quantity).
+
+quantity(Q, V, TL) :-
+    must_be_timeline(TL),
+    must_be_pattern(Q),
+    tl_quantity(TL, Term, V),
+    matches(Q, Term).
+
+% Time1 lies within Time2, end points included.
+time_inside(T1, T2) :-
+    allen_relation(R, T1, T2),
+    inside(R),
+    !.
+
+inside(equals).
+inside(starts).
+inside(during).
+inside(finishes).
+
+% matches(?Pattern, +Term): an atom matches every term of that name.
+matches(P, Term) :-
+    (   atom(P)
+    ->  (   P == Term
+        ->  true
+        ;   compound(Term),
+            compound_name_arity(Term, P, _)
+        )
+    ;   P = Term
+    ).
+
+must_be_pattern(P) :-
+    (   var(P) -> true
+    ;   callable(P) -> true
+    ;   type_error(callable, P)
+    ).
+
+must_be_timeline(TL) :-
+    must_be(atom, TL),
+    (   tl_registered(TL, _) -> true ; existence_error(timeline, TL) ).
+
+                 /*******************************
+                 *          QUERY FORM          *
+                 *******************************/
+
+%!  current_timeline(-Timeline) is semidet.
+%
+%   Timeline is the current timeline: the one selected by the innermost
+%   with_timeline/2 of this thread, else the most recently created one.
+%   Fails if there is none.
+
+current_timeline(TL) :-
+    (   nb_current('$timeline_selected', TL0), TL0 \== []
+    ->  TL = TL0
+    ;   aggregate_all(max(N, TL0), tl_registered(TL0, N), max(_, TL0)),
+        TL = TL0
+    ).
+
+the_current_timeline(TL) :-
+    (   current_timeline(TL0)
+    ->  TL = TL0
+    ;   existence_error(timeline, current)
+    ).
+
+%!  with_timeline(+Timeline, :Goal) is nondet.
+%
+%   Call Goal with Timeline as the current timeline.  The selection holds
+%   while Goal runs, also when backtracking into it, and ends when Goal
+%   exits, fails or throws.
+%
+%   @error existence_error(timeline, Timeline) if there is no such timeline.
+
+:- meta_predicate with_timeline(+, 0).
+
+with_timeline(TL, Goal) :-
+    must_be_timeline(TL),
+    (   nb_current('$timeline_selected', Old) -> true ; Old = [] ),
+    b_setval('$timeline_selected', TL),
+    call(Goal),
+    b_setval('$timeline_selected', Old).
+
+%!  holds(?Fluent, ?Time) is nondet.
+%!  occurs(?Event, ?Time) is nondet.
+%!  quantity(?Quantity, ?Value) is nondet.
+%
+%   holds/3, occurs/3 and quantity/3 on the current timeline.
+%
+%   @error existence_error(timeline, current) if there is no timeline.
+
+holds(F, T) :-
+    the_current_timeline(TL),
+    holds(F, T, TL).
+
+occurs(Ev, T) :-
+    the_current_timeline(TL),
+    occurs(Ev, T, TL).
+
+quantity(Q, V) :-
+    the_current_timeline(TL),
+    quantity(Q, V, TL).
+
+%!  typeOf(?Term, ?Type) is nondet.
+%
+%   Type is the type of the event or fluent Term: the name of Term, or its
+%   gerund as the paper writes event types (`dropping` for drop(egg1)).
+%   The gerunds known are: dropping-drop, slipping-slip, breaking-break,
+%   grasping-grasp, lifting-lift, spilling-spill, flipping-flip,
+%   pouring-pour, turning-turn, falling-fall.  Add others with clauses of
+%   the multifile timeline:type_alias(Gerund, Name).  If Term is
+%   unbound, it ranges over the events and fluents of the current
+%   timeline.
+%
+%   @error type_error(callable, Term) if Term is bound to a non-term.
+%   @error existence_error(timeline, current) if Term is unbound and there
+%          is no timeline.
+
+typeOf(Term, Type) :-
+    timeline_term(Term),
+    functor(Term, Name, _),
+    (   nonvar(Type)
+    ->  once(type_name(Name, Type))
+    ;   type_name(Name, Type)
+    ).
+
+type_name(Name, Name).
+type_name(Name, Alias) :-
+    type_alias(Alias, Name).
+
+:- multifile type_alias/2.
+
+type_alias(dropping, drop).
+type_alias(slipping, slip).
+type_alias(breaking, break).
+type_alias(grasping, grasp).
+type_alias(lifting, lift).
+type_alias(spilling, spill).
+type_alias(flipping, flip).
+type_alias(pouring, pour).
+type_alias(turning, turn).
+type_alias(falling, fall).
+
+%!  objOf(?Term, ?Object) is nondet.
+%
+%   Object is an object that the event or fluent Term is about: any
+%   argument of Term that is an atom (an entity name), not only the first,
+%   so that `contact(gripper, egg1)` is about egg1 too.  Numeric arguments
+%   are not objects.  Each object is given once.  If Term is unbound, it
+%   ranges over the events and fluents of the current timeline.
+%
+%   @error as for typeOf/2.
+
+objOf(Term, Obj) :-
+    timeline_term(Term),
+    compound(Term),
+    Term =.. [_|Args],
+    (   nonvar(Obj)
+    ->  atom(Obj),
+        memberchk(Obj, Args)
+    ;   include_atoms(Args, Objs0),
+        list_to_set(Objs0, Objs),
+        member(Obj, Objs)
+    ).
+
+include_atoms([], []).
+include_atoms([H|T0], L) :-
+    (   atom(H) -> L = [H|T] ; L = T ),
+    include_atoms(T0, T).
+
+% timeline_term(?Term): Term is checked if bound, else enumerated from the
+% distinct event and fluent terms of the current timeline.
+timeline_term(Term) :-
+    (   var(Term)
+    ->  the_current_timeline(TL),
+        distinct(Term, ( tl_event(TL, Term, _) ; tl_fluent(TL, Term, _) ))
+    ;   must_be(callable, Term)
+    ).
+
+                 /*******************************
+                 *           SANDBOX            *
+                 *******************************/
+
+% The query service runs goals under library(sandbox): with_timeline/2
+% calls its goal, and the selection uses a global variable.
+
+:- multifile sandbox:safe_meta/2, sandbox:safe_global_variable/1.
+
+sandbox:safe_meta(timeline:with_timeline(_, Goal), [Goal]).
+sandbox:safe_global_variable('$timeline_selected').
+
+                 /*******************************
+                 *           MESSAGES           *
+                 *******************************/
+
+:- multifile prolog:message//1.
+
+prolog:message(error(existence_error(timeline, current), _)) -->
+    [ 'No timeline exists: holds/2, occurs/2 and the other query forms ',
+      'use the most recently created timeline' ].
+prolog:message(error(existence_error(timeline, TL), _)) -->
+    [ 'Unknown timeline: ~p (created timelines are listed by timeline_exists/1)'-[TL] ].
