@@ -1,0 +1,254 @@
+:- begin_tests(knowledge_base_load).
+:- use_module(knowledge_base).
+
+test(load_default_ontology) :-
+    knowledge_base_load,
+    kb_entity(egg1).
+test(load_twice_is_harmless, all(E == [egg1])) :-
+    knowledge_base_load,
+    knowledge_base_load,
+    kb_entity(E), E == egg1.
+test(load_missing_file, error(existence_error(file, '/nonexistent/kitchen.ttl'))) :-
+    knowledge_base_load('/nonexistent/kitchen.ttl').
+test(load_non_atom, error(type_error(atom, 42))) :-
+    knowledge_base_load(42).
+test(load_bad_turtle,
+     [ setup(bad_turtle(File)),
+       cleanup(( delete_file(File), knowledge_base_load )),
+       error(syntax_error(_))
+     ]) :-
+    knowledge_base_load(File).
+test(failed_load_falls_back_to_default_on_use,
+     [ setup(bad_turtle(File)),
+       cleanup(delete_file(File))
+     ]) :-
+    catch(knowledge_base_load(File), error(syntax_error(_), _), true),
+    kb_entity(egg1).
+test(load_other_file_replaces_graph,
+     [ setup(tmp_file_stream(text, File, S)),
+       cleanup(( delete_file(File), knowledge_base_load ))
+     ]) :-
+    format(S, '@prefix kitchen: <http://projection-server.org/ontology/kitchen#> .~n', []),
+    format(S, 'kitchen:Entity a <http://www.w3.org/2002/07/owl#Class> .~n', []),
+    format(S, 'kitchen:thing1 a kitchen:Entity .~n', []),
+    close(S),
+    knowledge_base_load(File),
+    findall(E, kb_entity(E), Es),
+    Es == [thing1].
+
+bad_turtle(File) :-
+    tmp_file_stream(text, File, S),
+    format(S, '@prefix k: <http://x.org/k#> .~nk:a k:b ;; .~n', []),
+    close(S).
+
+:- end_tests(knowledge_base_load).
+
+:- begin_tests(knowledge_base).
+:- use_module(knowledge_base).
+
+close_to(X, Y) :- abs(X-Y) < 1.0e-9.
+
+test(entities, Es == [cup1, egg1, floor1, kitchen_env, pancake1, pancake_maker1,
+                      pancake_mix1, pr2_gripper, pr2_robot, spatula1, table1]) :-
+    findall(E, kb_entity(E), Es).
+test(prototypes_are_not_entities, fail) :-
+    kb_entity(egg_prototype).
+test(unknown_entity_is_no_entity, fail) :-
+    kb_entity(dragon).
+
+test(entity_class, C == egg) :- kb_entity_class(egg1, C).
+test(entity_class_most_specific, C == pancake_mix) :- kb_entity_class(pancake_mix1, C).
+test(entity_class_unknown, error(existence_error(entity, dragon))) :-
+    kb_entity_class(dragon, _).
+test(entity_class_non_atom, error(type_error(atom, 1))) :-
+    kb_entity_class(1, _).
+test(entity_class_unbound, error(instantiation_error)) :-
+    kb_entity_class(_, _).
+
+test(egg_properties,
+     P =@= _{shape: "ellipsoid", length: 0.058, diameter: 0.044, mass: 0.06,
+            friction: 0.35, restitution: 0.05, rolling_friction: 0.001,
+            spinning_friction: 0.001, breaking_force: 10.0}) :-
+    kb_entity_properties(egg1, P).
+test(table_properties,
+     P =@= _{shape: "box", size_x: 1.2, size_y: 0.8, size_z: 0.04, height: 0.72,
+            mass: 0.0, friction: 0.6, restitution: 0.1}) :-
+    kb_entity_properties(table1, P).
+test(robot_refers_to_its_gripper, G == pr2_gripper) :-
+    kb_entity_properties(pr2_robot, P),
+    G = P.gripper.
+test(mix_refers_to_its_cup, C == cup1) :-
+    kb_entity_properties(pancake_mix1, P),
+    C = P.container.
+test(counts_are_integers, N == 300) :-
+    kb_entity_properties(pancake_mix1, P),
+    N = P.particle_count.
+test(properties_unknown, error(existence_error(entity, dragon))) :-
+    kb_entity_properties(dragon, _).
+
+% Every body has the dimensions its shape needs, a mass and a friction.
+test(shapes_have_their_dimensions, Missing == []) :-
+    findall(E-K,
+            ( kb_entity(E),
+              kb_entity_properties(E, P),
+              get_dict(shape, P, Shape),
+              shape_keys(Shape, Keys),
+              member(K, Keys),
+              \+ get_dict(K, P, _)
+            ),
+            Missing).
+
+shape_keys("plane", [mass, friction]).
+shape_keys("box", [size_x, size_y, size_z, mass, friction]).
+shape_keys("ellipsoid", [length, diameter, mass, friction]).
+shape_keys("cylinder", [radius, height, mass, friction]).
+shape_keys("disc", [radius, thickness, mass, friction]).
+shape_keys("cup", [radius, height, wall_thickness, mass, friction]).
+shape_keys("sphere", [particle_count, particle_radius, particle_mass, friction]).
+shape_keys("urdf", [urdf, friction]).
+shape_keys("none", []).
+
+test(egg_is_a_hens_egg) :-
+    kb_entity_properties(egg1, P),
+    P.length >= 0.05, P.length =< 0.065,
+    P.diameter >= 0.04, P.diameter =< 0.05,
+    P.mass >= 0.05, P.mass =< 0.07,
+    P.friction >= 0.3, P.friction =< 0.5.
+
+test(egg_lies_on_the_table) :-
+    kb_entity_pose(egg1, _{xyz: [_, _, Z], rpy: _}),
+    kb_entity_properties(egg1, E),
+    kb_entity_properties(table1, T),
+    close_to(Z - E.diameter/2, T.height).
+test(table_pose_is_its_top_slab) :-
+    kb_entity_pose(table1, _{xyz: [0.0, 0.0, Z], rpy: [0.0, 0.0, 0.0]}),
+    kb_entity_properties(table1, T),
+    close_to(Z + T.size_z/2, T.height).
+test(pancake_maker_stands_on_the_table) :-
+    kb_entity_pose(pancake_maker1, _{xyz: [_, _, Z], rpy: _}),
+    kb_entity_properties(pancake_maker1, M),
+    close_to(Z - M.height/2, 0.72).
+test(pancake_lies_on_the_pancake_maker) :-
+    kb_entity_pose(pancake1, _{xyz: [X, Y, Z], rpy: _}),
+    kb_entity_pose(pancake_maker1, _{xyz: [MX, MY, MZ], rpy: _}),
+    kb_entity_properties(pancake1, P),
+    kb_entity_properties(pancake_maker1, M),
+    close_to(Z - P.thickness/2, MZ + M.height/2),
+    sqrt((X-MX)**2 + (Y-MY)**2) + P.radius =< M.radius.
+test(cup_is_above_the_pancake_maker) :-
+    kb_entity_pose(cup1, _{xyz: [X, Y, Z], rpy: _}),
+    kb_entity_pose(pancake_maker1, _{xyz: [MX, MY, MZ], rpy: _}),
+    kb_entity_properties(cup1, C),
+    kb_entity_properties(pancake_maker1, M),
+    sqrt((X-MX)**2 + (Y-MY)**2) < M.radius,
+    Z - C.height/2 > MZ + M.height/2.
+test(pose_missing_components_are_zero, P =@= _{xyz: [-0.95, 0.0, 0.0], rpy: [0.0, 0.0, 0.0]}) :-
+    kb_entity_pose(pr2_robot, P).
+
+test(environment_parts, Ps == [floor1, table1]) :- kb_entity_parts(kitchen_env, Ps).
+test(robot_parts, Ps == [pr2_gripper]) :- kb_entity_parts(pr2_robot, Ps).
+test(cup_contents_are_parts, Ps == [pancake_mix1]) :- kb_entity_parts(cup1, Ps).
+test(simple_entity_has_no_parts, Ps == []) :- kb_entity_parts(egg1, Ps).
+
+test(description_is_nested) :-
+    kb_entity_description(kitchen_env, E),
+    E.name == kitchen_env,
+    E.class == environment,
+    maplist(get_dict(name), E.parts, [floor1, table1]),
+    maplist(get_dict(class), E.parts, [floor, table]).
+test(description_uses_simulator_class, C == particle_fluid) :-
+    kb_entity_description(pancake_mix1, E),
+    C = E.class.
+
+test(scenario_grasping, M == [kitchen_env, pr2_robot, egg1]) :-
+    kb_scenario(grasping, M).
+test(scenario_pouring, M == [kitchen_env, pr2_robot, cup1, pancake_maker1]) :-
+    kb_scenario(pouring, M).
+test(scenario_turning, M == [kitchen_env, pr2_robot, pancake1, pancake_maker1, spatula1]) :-
+    kb_scenario(turning, M).
+test(scenario_names, all(S == [grasping, pouring, turning])) :-
+    kb_scenario(S, _).
+test(scenario_unknown, fail) :-
+    kb_scenario(cooking, _).
+
+test(classes_include_leaves) :-
+    forall(member(C, [egg, table, floor, robot, gripper, cup, pancake_mix,
+                      particle_fluid, pancake_maker, spatula, pancake, environment]),
+           kb_class(C)).
+test(class_name_round_trip_only, fail) :-
+    kb_class('PancakeMaker').
+test(simulator_class_inherited, S == particle_fluid) :-
+    kb_simulator_class(pancake_mix, S).
+test(simulator_class_abstract, error(domain_error(simulated_class, physical_object))) :-
+    kb_simulator_class(physical_object, _).
+test(simulator_class_unknown, error(existence_error(class, dragon))) :-
+    kb_simulator_class(dragon, _).
+
+test(class_defaults_pancake) :-
+    kb_class_defaults(pancake, D),
+    D.radius == 0.07, D.thickness == 0.008, D.mass == 0.06,
+    D.model == "rings", D.ring_count == 3.
+test(class_defaults_inherited, F == 0.5) :-
+    kb_class_defaults(robot, D),
+    F = D.friction.
+test(class_defaults_nearer_class_wins, F == 0.35) :-
+    kb_class_defaults(egg, D),
+    F = D.friction.
+test(class_pose_egg_on_table, P =@= _{xyz: [-0.3, 0.0, 0.742], rpy: [0.0, 0.0, 0.0]}) :-
+    kb_class_pose(egg, P).
+test(class_pose_default_origin, P =@= _{xyz: [0.0, 0.0, 0.0], rpy: [0.0, 0.0, 0.0]}) :-
+    kb_class_pose(particle_fluid, P).
+test(class_defaults_unknown, error(existence_error(class, dragon))) :-
+    kb_class_defaults(dragon, _).
+
+test(unit_mass, U == 'KiloGM') :- kb_property_unit(mass, U).
+test(unit_breaking_force, U == 'N') :- kb_property_unit(breaking_force, U).
+test(unit_pose, U == 'RAD') :- kb_property_unit(yaw, U).
+test(every_numeric_property_has_a_unit, Missing == []) :-
+    findall(K, ( kb_entity(E), kb_entity_properties(E, P),
+                 get_dict(K, P, V), number(V),
+                 \+ kb_property_unit(K, _) ), Ks),
+    sort(Ks, Missing).
+
+test(check_integer_to_float, V == 1.0) :- kb_check_property(egg, mass, 1, V).
+test(check_atom_to_string, V == "box") :- kb_check_property(table, shape, box, V).
+test(check_count, V == 10) :- kb_check_property(pancake_mix, particle_count, 10, V).
+test(check_reference, V == cup2) :- kb_check_property(particle_fluid, container, cup2, V).
+test(check_wrong_type, error(type_error(number, heavy))) :-
+    kb_check_property(egg, mass, heavy, _).
+test(check_count_float, error(type_error(integer, 2.5))) :-
+    kb_check_property(pancake_mix, particle_count, 2.5, _).
+test(check_negative, error(domain_error(not_less_than_zero, -1))) :-
+    kb_check_property(egg, mass, -1, _).
+test(check_unknown_key, error(domain_error(entity_property, colour))) :-
+    kb_check_property(egg, colour, red, _).
+test(check_pose_is_no_property, error(domain_error(entity_property, x))) :-
+    kb_check_property(egg, x, 1, _).
+test(check_inapplicable_key, error(domain_error(entity_property, breaking_force))) :-
+    kb_check_property(table, breaking_force, 10, _).
+test(check_reference_type, error(type_error(atom, 3))) :-
+    kb_check_property(particle_fluid, container, 3, _).
+test(check_unknown_class, error(existence_error(class, dragon))) :-
+    kb_check_property(dragon, mass, 1, _).
+
+test(pose_complete, P =@= _{xyz: [1.0, 2.0, 3.0], rpy: [0.0, 0.0, 0.0]}) :-
+    kb_check_pose(_{xyz: [1, 2, 3]}, P).
+test(pose_not_dict, error(type_error(dict, [1,2,3]))) :-
+    kb_check_pose([1,2,3], _).
+test(pose_unknown_key, error(domain_error(pose_key, quaternion))) :-
+    kb_check_pose(_{quaternion: [0,0,0,1]}, _).
+test(pose_short_vector, error(domain_error(list_of_length(3), [1,2]))) :-
+    kb_check_pose(_{xyz: [1,2]}, _).
+test(pose_non_numbers, error(type_error(number, a))) :-
+    kb_check_pose(_{rpy: [a,b,c]}, _).
+
+test(error_message_is_readable) :-
+    catch(kb_check_property(table, breaking_force, 10, _), E, true),
+    message_to_codes(E, S),
+    once(sub_string(S, _, _, _, "not a property of class table")).
+
+message_to_codes(E, S) :-
+    '$messages':translate_message(E, Lines, []),
+    with_output_to(string(S), print_message_lines(current_output, '', Lines)).
+
+:- end_tests(knowledge_base).
