@@ -1,0 +1,214 @@
+"""Contact pressure on an ellipsoidal shell: the computation behind the egg's breaking.
+
+Rigid-body physics reports *forces*; a shell breaks under *pressure*. This module estimates
+the peak contact pressure on an ellipsoid from a measured normal force and the contact's
+geometry, and converts it into an *equivalent load*: the force that would give the same
+peak pressure in the reference test that defines an egg's ``breaking_force`` (squeezed at
+its equator between two flat faces). Far from edges the equivalent load is the force scaled
+by the shell's local curvature; at a pad's edge it is higher because the contact patch is cut.
+
+Model: the counter-surface is an elastic layer on a rigid backing (a Winkler foundation,
+modulus ``k`` = E / thickness [N/m^3]), the right model for a thin rubber gripper pad. The
+pressure at a point is ``k * max(0, delta - gap)``, where ``gap`` is the distance from the
+undeformed face to the shell and ``delta`` the indentation. For an unbounded face this gives
+``p_max = sqrt(k F / (pi R_e))`` with ``R_e = sqrt(R_1 R_2)`` the geometric mean of the
+shell's principal radii (``R_e = a b c sum(x_i^2 / a_i^4)`` on an ellipsoid); the reference
+test at the equator of a spheroid has ``R_e = a``. On a finite pad the part of the patch
+beyond the pad's edge is missing, so ``delta``, and with it ``p_max``, must rise to carry
+the same force: the integral is solved numerically over the pad face. Once the shell's
+deepest point lies beyond the face, the shell rests on the pad's rounded rim instead, a
+contact with the rim's curvature added across it.
+
+Scaling the load with ``R_e`` (rather than the ``R_e^2`` of Hertz's half-space pressure)
+agrees with Auerbach's law for the fracture of brittle solids under curved indenters, whose
+critical load is proportional to the indenter's radius.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    'curvature_load',
+    'ellipsoid_gaps',
+    'equivalent_load',
+    'pad_peak_pressure',
+    'reference_radius',
+    'rim_peak_pressure',
+    'support_point',
+    'winkler_indentation',
+]
+
+_GRID = 40            # grid points per axis of the pad window
+_MIN_ACTIVE = 80      # fewer loaded grid points than this: refine the window
+
+
+def reference_radius(semi_axes: tuple[float, float, float]) -> float:
+    """``R_e`` of the breaking-force test: pressed along the 2nd axis at the equator."""
+    a, b, c = semi_axes
+    return a * c / b
+
+
+def equivalent_load(peak_pressure: float, stiffness: float,
+                    semi_axes: tuple[float, float, float]) -> float:
+    """Force of the reference test that gives ``peak_pressure`` [N]."""
+    return math.pi * reference_radius(semi_axes) * peak_pressure ** 2 / stiffness
+
+
+def curvature_load(force: float, semi_axes: tuple[float, float, float],
+                   point: np.ndarray) -> float:
+    """Equivalent load of ``force`` on an unbounded flat face touching ``point`` (shell frame).
+
+    ``point`` is projected onto the ellipsoid first (Bullet reports contact points on the
+    collision margin).
+    """
+    axes = np.asarray(semi_axes)
+    x = np.asarray(point, dtype=float)
+    scale = math.sqrt(float(np.sum((x / axes) ** 2)))
+    if scale == 0.0:
+        return force
+    x = x / scale
+    radius = float(np.prod(axes) * np.sum(x ** 2 / axes ** 4))
+    return force * reference_radius(semi_axes) / radius
+
+
+def support_point(semi_axes: tuple[float, float, float], rot: np.ndarray, pos: np.ndarray,
+                  normal: np.ndarray) -> np.ndarray:
+    """World point of the ellipsoid whose outward normal is ``normal`` (world, unit)."""
+    d2 = np.asarray(semi_axes) ** 2
+    m = rot.T @ normal
+    local = d2 * m / math.sqrt(float(m @ (d2 * m)))
+    return pos + rot @ local
+
+
+def ellipsoid_gaps(semi_axes: tuple[float, float, float], rot: np.ndarray, pos: np.ndarray,
+                   points: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Distance from each of ``points`` (N x 3, world) along ``direction`` to the ellipsoid.
+
+    ``inf`` where the ray misses it. Exact (no quadratic approximation of the surface).
+    """
+    inv = 1.0 / np.asarray(semi_axes)
+    x0 = ((points - pos) @ rot) * inv
+    d = (rot.T @ direction) * inv
+    qa = float(d @ d)
+    qb = 2.0 * (x0 @ d)
+    qc = np.einsum('ij,ij->i', x0, x0) - 1.0
+    disc = qb * qb - 4.0 * qa * qc
+    gaps = np.full(len(points), np.inf)
+    hit = disc >= 0.0
+    gaps[hit] = (-qb[hit] - np.sqrt(disc[hit])) / (2.0 * qa)
+    return gaps
+
+
+def rim_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: np.ndarray,
+                      pos: np.ndarray, edge_point: np.ndarray, edge_direction: np.ndarray,
+                      face_normal: np.ndarray, stiffness: float,
+                      rim_radius: float) -> float | None:
+    """Peak pressure [Pa] of the shell resting on a pad's rounded rim.
+
+    The rim is a cylinder of ``rim_radius`` along ``edge_direction`` through ``edge_point``;
+    the shell touches it where the face normal through the edge meets the shell. The
+    contact's radii are the shell's normal curvature radius along the rim and, across it,
+    the shell's and the rim's curvatures combined; then ``p = sqrt(k F / (pi R_e))``.
+    """
+    gap = ellipsoid_gaps(semi_axes, rot, pos, edge_point[None, :], face_normal)[0]
+    if not math.isfinite(gap):
+        return None
+    inv2 = 1.0 / np.asarray(semi_axes) ** 2
+    point = rot.T @ (edge_point + gap * face_normal - pos)
+    gradient = point * inv2
+    normal = gradient / np.linalg.norm(gradient)
+    along = rot.T @ edge_direction
+    along = along - (along @ normal) * normal
+    along /= np.linalg.norm(along)
+    across = np.cross(normal, along)
+
+    def curvature(t: np.ndarray) -> float:
+        return float(t @ (t * inv2)) / float(np.linalg.norm(gradient))
+
+    radius = 1.0 / math.sqrt(curvature(along) * (curvature(across) + 1.0 / rim_radius))
+    return math.sqrt(stiffness * force / (math.pi * radius))
+
+
+def winkler_indentation(gaps: np.ndarray, cell_area: float, force: float,
+                        stiffness: float) -> tuple[float, int]:
+    """Indentation ``delta`` with ``k * cell_area * sum(max(0, delta - gap)) = force``.
+
+    Returns ``(delta, number of loaded cells)``. Exact for the discretized face: with the
+    gaps sorted, the force is piecewise linear in ``delta``.
+    """
+    g = np.sort(gaps[np.isfinite(gaps)])
+    if g.size == 0:
+        return math.inf, 0
+    j = np.arange(1, g.size + 1)
+    delta = (force / (stiffness * cell_area) + np.cumsum(g)) / j
+    upper = np.append(g[1:], np.inf)
+    first = int(np.argmax(delta <= upper))
+    return float(delta[first]), first + 1
+
+
+def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: np.ndarray,
+                      pos: np.ndarray, face_centre: np.ndarray, face_axes: np.ndarray,
+                      face_normal: np.ndarray, half_extents: tuple[float, float],
+                      stiffness: float, rim_radius: float) -> float | None:
+    """Peak pressure [Pa] of a rectangular rubber pad pressed onto the ellipsoid.
+
+    ``face_normal`` points from the pad towards the shell; ``face_axes`` (2 x 3) span the flat
+    face with ``half_extents``; its rim is rounded with ``rim_radius``. While the shell's
+    deepest point lies over the face, the pressure field is solved on a window of the face
+    around it, grown until the loaded patch fits and refined until it is resolved. Beyond the
+    face the shell rests on the rim: a contact of the shell with a cylinder of the rim's
+    radius (:func:`rim_peak_pressure`). Returns None if the pad is not over the shell.
+    """
+    if force <= 0.0:
+        return 0.0
+    h = np.asarray(half_extents)
+    support = support_point(semi_axes, rot, pos, -face_normal)
+    offset = face_axes @ (support - face_centre)
+    centre = np.clip(offset, -h, h)
+    if np.any(np.abs(offset) > h):
+        # Along the rim: the face axis whose extent the deepest point does not exceed (or
+        # exceeds least, at a corner).
+        along = int(np.argmin(np.abs(offset) - h))
+        edge_point = face_centre + face_axes.T @ centre
+        return rim_peak_pressure(force, semi_axes, rot, pos, edge_point, face_axes[along],
+                                 face_normal, stiffness, rim_radius)
+    a_max, b_min = max(semi_axes), min(semi_axes)
+    # Patch radius of a full contact at the most curved spot: a safe first window.
+    delta = math.sqrt(force / (math.pi * stiffness * b_min ** 2 / a_max))
+    radius = math.sqrt(2.0 * a_max ** 2 / b_min * delta)
+    if np.all(h - np.abs(offset) > 1.5 * radius):
+        # The whole patch lies on the face: the closed form of an unbounded face holds.
+        local = rot.T @ (support - pos)
+        load = curvature_load(force, semi_axes, local)
+        return math.sqrt(load * stiffness / (math.pi * reference_radius(semi_axes)))
+    half = 2.0 * radius + float(np.abs(offset - centre).max())
+    grown = False
+    for _ in range(12):
+        lo, hi = np.maximum(centre - half, -h), np.minimum(centre + half, h)
+        u, v = np.linspace(lo[0], hi[0], _GRID), np.linspace(lo[1], hi[1], _GRID)
+        uu, vv = np.meshgrid(u, v, indexing='ij')
+        points = (face_centre + uu.reshape(-1, 1) * face_axes[0]
+                  + vv.reshape(-1, 1) * face_axes[1])
+        gaps = ellipsoid_gaps(semi_axes, rot, pos, points, face_normal)
+        if not np.isfinite(gaps).any():
+            return None
+        cell = (u[1] - u[0]) * (v[1] - v[0]) if _GRID > 1 else 0.0
+        if cell <= 0.0:
+            half *= 2.0
+            continue
+        delta, active = winkler_indentation(gaps, cell, force, stiffness)
+        loaded = (gaps < delta).reshape(_GRID, _GRID)
+        cut = [lo[0] > -h[0], hi[0] < h[0], lo[1] > -h[1], hi[1] < h[1]]
+        edges = [loaded[0, :], loaded[-1, :], loaded[:, 0], loaded[:, -1]]
+        if any(c and e.any() for c, e in zip(cut, edges)):
+            half *= 1.6
+            grown = True
+            continue
+        if active < _MIN_ACTIVE and not grown:
+            half *= 0.5
+            continue
+        break
+    return stiffness * (delta - float(gaps[np.isfinite(gaps)].min()))

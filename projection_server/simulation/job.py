@@ -1,0 +1,79 @@
+"""A projection job and its content key (what makes two projections the same)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import functools
+import hashlib
+import json
+from pathlib import Path
+from typing import Any, TYPE_CHECKING
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.programs import get as get_program
+from projection_server.simulation.scenario import parse_scenario
+
+if TYPE_CHECKING:
+    from projection_server.simulation.settings import Settings
+
+__all__ = ['Job', 'canonical_json', 'code_version']
+
+
+def canonical_json(value: Any) -> str:
+    """JSON with sorted keys and no whitespace: equal values give equal text."""
+    try:
+        return json.dumps(value, sort_keys=True, separators=(',', ':'), allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ProjectionError('invalid_scenario', f'not plain JSON data: {exc}') from exc
+
+
+@functools.cache
+def code_version() -> str:
+    """Package version plus a digest of the code, assets and messages that shape a bag."""
+    from importlib import metadata
+
+    from projection_server.bags import message_definitions
+
+    try:
+        version = metadata.version('projection_server')
+    except metadata.PackageNotFoundError:
+        version = '0+source'
+    package = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    files = sorted([*(package / 'simulation').rglob('*'), package / 'bags.py'])
+    for path in files:
+        if path.is_file() and path.suffix in {'.py', '.urdf', '.yaml'}:
+            digest.update(path.relative_to(package).as_posix().encode())
+            digest.update(path.read_bytes())
+    for name, text in sorted(message_definitions().items()):
+        digest.update(name.encode())
+        digest.update(text.encode())
+    return f'{version}+{digest.hexdigest()[:16]}'
+
+
+@dataclass(frozen=True, eq=False)
+class Job:
+    """One projection: a scenario description, a program name and its parameter values.
+
+    Construct with :meth:`checked`, which validates everything that can be checked without a
+    simulator and fills in parameter defaults.
+    """
+
+    scenario: dict[str, Any]
+    program: str
+    params: dict[str, float]
+
+    @classmethod
+    def checked(cls, scenario: Any, program: str, params: Any) -> Job:
+        """Validate and normalize (raises ProjectionError with the matching kind)."""
+        parse_scenario(scenario)
+        values = get_program(program).check(params if params is not None else {})
+        # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
+        return cls(json.loads(canonical_json(scenario)), program, values)
+
+    def key(self, settings: Settings) -> str:
+        """Content hash of job, settings and code version: the cache key and the bag's name."""
+        text = canonical_json({'scenario': self.scenario, 'program': self.program,
+                               'params': self.params, 'settings': settings.to_dict(),
+                               'code': code_version()})
+        return hashlib.sha256(text.encode()).hexdigest()

@@ -1,0 +1,307 @@
+"""A PyBullet world addressed by entity names: stepping, object models and named queries.
+
+:class:`Physics` owns one ``BulletClient`` (never pybullet's module-global client), the
+name <-> body registry built by :mod:`projection_server.simulation.world`, the grippers and
+the object models that run after every physics step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol, TYPE_CHECKING
+
+import numpy as np
+
+from projection_server.simulation.errors import ProjectionError
+
+if TYPE_CHECKING:
+    from projection_server.simulation.settings import Settings
+
+__all__ = [
+    'Body',
+    'ContactSample',
+    'Gripper',
+    'ObjectModel',
+    'Pad',
+    'Physics',
+    'Shape',
+]
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Shape:
+    """What a body looks like, for markers: kind and full extents along its own axes [m]."""
+
+    kind: str                      # box, cylinder, sphere (scaled: ellipsoid), plane
+    size: Vec3
+    color: tuple[float, float, float, float] = (0.7, 0.7, 0.7, 1.0)
+
+
+@dataclass
+class Body:
+    """A simulated body registered under an entity name."""
+
+    name: str
+    cls: str
+    body_id: int
+    static: bool
+    shape: Shape | None
+    links: dict[int, str] = field(default_factory=dict)   # link index -> link name
+    link_shapes: dict[int, list[tuple[Shape, Vec3]]] = field(default_factory=dict)  # + offset
+
+
+@dataclass(frozen=True)
+class Pad:
+    """The flat contact face of a gripper finger, in its link frame.
+
+    ``normal`` points out of the face (towards a grasped object); ``axes`` span the face;
+    ``half_extents`` are the face's half sizes along ``axes``; ``stiffness`` is the
+    foundation modulus of the pad's rubber layer [N/m^3] (E / thickness); ``rim_radius``
+    the radius [m] to which the face's rim is rounded.
+    """
+
+    link: int
+    link_name: str
+    centre: Vec3
+    normal: Vec3
+    axes: tuple[Vec3, Vec3]
+    half_extents: tuple[float, float]
+    stiffness: float
+    rim_radius: float
+
+
+@dataclass(frozen=True)
+class ContactSample:
+    """A contact between two named bodies, aggregated over one link pair's manifold.
+
+    Names are ordered so that ``(body_a, link_a) < (body_b, link_b)``; ``normal`` points
+    from b to a; ``friction`` is the summed lateral friction force reported by Bullet.
+    """
+
+    body_a: str
+    link_a: str
+    body_b: str
+    link_b: str
+    position: Vec3
+    normal: Vec3
+    normal_force: float
+    friction: Vec3
+
+
+class ObjectModel(Protocol):
+    """A controller attached to an object that computes what rigid-body physics does not."""
+
+    name: str
+    load: float   # equivalent load of the last step [N]
+
+    def after_step(self, physics: Physics) -> None:
+        """Run once after every physics step."""
+
+    def sample(self) -> tuple[float, float, bool]:
+        """``(load since the last sample [N], load limit [N] or 0, broken)``; resets the load."""
+
+
+class Gripper:
+    """A parallel-jaw gripper on a gantry (lift along z, approach along x of its base frame).
+
+    The fingers are force limited: closing drives them at a set speed with a motor whose force
+    saturates at the commanded grip force, so once the pads touch an object they squeeze it
+    with that force.
+    """
+
+    def __init__(self, client: Any, name: str, body_id: int, joints: dict[str, Any],
+                 pads: list[Pad], max_joint_force: float):
+        self.name = name
+        self.body_id = body_id
+        self.pads = pads
+        self._client = client
+        self._lift = joints['lift']
+        self._approach = joints['approach']
+        self._fingers = tuple(joints['fingers'])
+        self._max_joint_force = max_joint_force
+        self.command = 'open'
+        self.commanded_force = 0.0
+        for j in self._fingers:   # velocity motors off until commanded
+            self._client.setJointMotorControl2(body_id, j, self._client.VELOCITY_CONTROL,
+                                               targetVelocity=0.0, force=0.0)
+
+    @property
+    def finger_links(self) -> list[str]:
+        return [pad.link_name for pad in self.pads]
+
+    def place(self, position: Vec3, orientation: Quat, approach: float, lift: float,
+              opening: float) -> None:
+        """Put the gantry base at a pose and the joints at given values (before a program)."""
+        c = self._client
+        c.resetBasePositionAndOrientation(self.body_id, position, orientation)
+        c.resetJointState(self.body_id, self._approach, approach)
+        c.resetJointState(self.body_id, self._lift, lift)
+        for j in self._fingers:
+            c.resetJointState(self.body_id, j, opening / 2)
+        self.move(approach, lift)
+        self.open(opening, speed=0.1)
+
+    def move(self, approach: float, lift: float) -> None:
+        """Position targets of the gantry joints [m]."""
+        for joint, target in ((self._approach, approach), (self._lift, lift)):
+            self._client.setJointMotorControl2(
+                self.body_id, joint, self._client.POSITION_CONTROL,
+                targetPosition=target, force=self._max_joint_force)
+
+    def close(self, force: float, speed: float) -> None:
+        """Close both fingers at ``speed`` [m/s], each pushing with at most ``force`` [N]."""
+        self.command, self.commanded_force = 'close', force
+        for j in self._fingers:
+            self._client.setJointMotorControl2(self.body_id, j, self._client.VELOCITY_CONTROL,
+                                               targetVelocity=-speed, force=force)
+
+    def open(self, opening: float, speed: float) -> None:
+        """Open the fingers to ``opening`` [m] between the pads."""
+        self.command, self.commanded_force = 'open', 0.0
+        for j in self._fingers:
+            self._client.setJointMotorControl2(
+                self.body_id, j, self._client.POSITION_CONTROL, targetPosition=opening / 2,
+                maxVelocity=speed, force=self._max_joint_force)
+
+    def opening(self) -> float:
+        """Distance between the pad faces [m]."""
+        return sum(self._client.getJointState(self.body_id, j)[0] for j in self._fingers)
+
+    def measured_force(self) -> float:
+        """Mean magnitude of the finger motors' forces [N]."""
+        forces = [abs(self._client.getJointState(self.body_id, j)[3]) for j in self._fingers]
+        return sum(forces) / len(forces)
+
+    def pad_faces(self) -> list[tuple[Pad, np.ndarray, np.ndarray, np.ndarray]]:
+        """``(pad, face centre, face axes (2x3), face normal)`` of each pad in the world."""
+        faces = []
+        for pad in self.pads:
+            state = self._client.getLinkState(self.body_id, pad.link,
+                                              computeForwardKinematics=True)
+            origin = np.asarray(state[4])
+            rot = np.asarray(self._client.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+            faces.append((pad, origin + rot @ pad.centre, (rot @ np.asarray(pad.axes).T).T,
+                          rot @ pad.normal))
+        return faces
+
+
+class Physics:
+    """The simulation of one projection, with named access and queries."""
+
+    def __init__(self, client: Any, settings: Settings):
+        self.client = client
+        self.settings = settings
+        self.step_count = 0
+        self.bodies: dict[str, Body] = {}
+        self.grippers: dict[str, Gripper] = {}
+        self.models: list[ObjectModel] = []
+        self.shapes_changed = True   # markers must be (re)logged
+        self._names: dict[int, str] = {}
+
+    # --- registry -----------------------------------------------------------------------
+    def add_body(self, body: Body) -> Body:
+        if body.name in self.bodies:
+            raise ProjectionError('invalid_scenario', f'body {body.name!r} exists already')
+        self.bodies[body.name] = body
+        self._names[body.body_id] = body.name
+        self.shapes_changed = True
+        return body
+
+    def replace_body(self, name: str, body_id: int, shape: Shape) -> Body:
+        """Swap the simulated body of ``name`` (e.g. an egg for its broken remains)."""
+        old = self.bodies[name]
+        self.client.removeBody(old.body_id)
+        del self._names[old.body_id]
+        new = Body(name, old.cls, body_id, old.static, shape)
+        self.bodies[name] = new
+        self._names[body_id] = name
+        self.shapes_changed = True
+        return new
+
+    def body(self, name: str) -> Body:
+        try:
+            return self.bodies[name]
+        except KeyError:
+            raise ProjectionError('invalid_scenario', f'no body named {name!r}') from None
+
+    def name_of(self, body_id: int) -> str | None:
+        return self._names.get(body_id)
+
+    def link_name(self, body_id: int, link: int) -> str:
+        body = self.bodies.get(self._names.get(body_id, ''))
+        return body.links.get(link, '') if body is not None else ''
+
+    # --- time ---------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Simulated seconds since the start."""
+        return self.step_count / self.settings.physics.rate_hz
+
+    @property
+    def time_ns(self) -> int:
+        """Simulated time in integer nanoseconds (exact: no accumulated float error)."""
+        return self.step_count * 1_000_000_000 // self.settings.physics.rate_hz
+
+    def step(self) -> None:
+        """One physics step, then every object model."""
+        self.client.stepSimulation()
+        self.step_count += 1
+        for model in self.models:
+            model.after_step(self)
+
+    # --- named queries -----------------------------------------------------------------
+    def pose(self, name: str) -> tuple[Vec3, Quat]:
+        """World position and orientation (x, y, z, w) of a body's base."""
+        return self.client.getBasePositionAndOrientation(self.body(name).body_id)
+
+    def link_pose(self, name: str, link: int) -> tuple[Vec3, Quat]:
+        state = self.client.getLinkState(self.body(name).body_id, link,
+                                         computeForwardKinematics=True)
+        return state[4], state[5]
+
+    def contact_force(self, a: str, b: str) -> float:
+        """Total normal force between bodies ``a`` and ``b`` [N]."""
+        return sum(p[9] for p in self.client.getContactPoints(
+            bodyA=self.body(a).body_id, bodyB=self.body(b).body_id))
+
+    def object_load(self, name: str) -> float:
+        """Current equivalent load that the object model of ``name`` computed [N]."""
+        for model in self.models:
+            if model.name == name:
+                return model.load
+        raise ProjectionError('invalid_scenario', f'{name!r} has no object model')
+
+    def gripper_opening(self, gripper: str) -> float:
+        return self.grippers[gripper].opening()
+
+    def contacts(self) -> list[ContactSample]:
+        """All contacts of the last step between named bodies, one per link pair, sorted."""
+        groups: dict[tuple[str, str, str, str], list[tuple[Any, float]]] = {}
+        for point in self.client.getContactPoints():
+            a, b = self.name_of(point[1]), self.name_of(point[2])
+            if a is None or b is None:
+                continue
+            key_a = (a, self.link_name(point[1], point[3]))
+            key_b = (b, self.link_name(point[2], point[4]))
+            sign = 1.0 if key_a < key_b else -1.0
+            key = (*key_a, *key_b) if sign > 0 else (*key_b, *key_a)
+            groups.setdefault(key, []).append((point, sign))
+        samples = []
+        for key in sorted(groups):
+            points = groups[key]
+            forces = np.array([p[9] for p, _ in points])
+            total = float(forces.sum())
+            positions = np.array([(np.asarray(p[5]) + p[6]) / 2 for p, _ in points])
+            weights = forces / total if total > 0 else np.full(len(points), 1 / len(points))
+            normal = sum(s * np.asarray(p[7]) * w for (p, s), w in zip(points, weights))
+            norm = np.linalg.norm(normal)
+            friction = sum(s * (p[10] * np.asarray(p[11]) + p[12] * np.asarray(p[13]))
+                           for p, s in points)
+            samples.append(ContactSample(
+                *key, position=tuple(weights @ positions),
+                normal=tuple(normal / norm) if norm > 0 else (0.0, 0.0, 1.0),
+                normal_force=total, friction=tuple(np.asarray(friction, dtype=float))))
+        return samples

@@ -1,0 +1,82 @@
+"""``grasp_object(force, position)``: grasp the egg lying on the table and lift it.
+
+The gripper approaches horizontally along the egg's long axis with open fingers, the pads'
+centre ``position`` metres from the egg's centre along that axis, closes its fingers with the
+grip ``force`` of each finger, waits, lifts the egg by 0.1 m and holds it there. Nothing in
+the program looks at the outcome: whether the egg is held, slips or breaks is decided by the
+contacts' friction and by the egg's object model.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.programs.registry import Parameter, Program, register
+
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Gripper, Physics
+    from projection_server.simulation.scenario import Scenario
+
+__all__ = ['GraspObject', 'PROGRAM']
+
+TARGET_CLASS = 'egg'
+APPROACH_DISTANCE = 0.09   # m, pre-grasp offset of the tool along the approach axis
+OPEN_WIDTH = 0.07          # m between the pads while approaching
+CLOSING_SPEED = 0.03       # m/s of each finger
+LIFT_HEIGHT = 0.10         # m
+# Phase ends [s]: settle, approach, close, squeeze, lift, hold.
+SETTLED, APPROACHED, CLOSED, SQUEEZED, LIFTED, HELD = 0.2, 0.8, 1.5, 1.8, 2.8, 3.8
+
+
+def _min_jerk(t: float, start: float, end: float) -> float:
+    """Progress 0..1 of a minimum-jerk motion between times ``start`` and ``end``."""
+    s = min(max((t - start) / (end - start), 0.0), 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+class GraspObject:
+    """The task: one grasp of the scenario's first egg with its first robot's gripper."""
+
+    duration = HELD
+
+    def __init__(self, physics: Physics, scenario: Scenario, params: dict[str, float],
+                 rng: np.random.Generator):
+        target = next(scenario.of_class(TARGET_CLASS), None)
+        robot = next(scenario.of_class('robot'), None)
+        if target is None or robot is None:
+            raise ProjectionError('invalid_scenario',
+                                  f'grasp_object needs an {TARGET_CLASS} and a robot')
+        self.force = params['force']
+        self.gripper: Gripper = physics.grippers[robot.name]
+        position, orientation = physics.pose(target.name)
+        rot = np.asarray(physics.client.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+        yaw = math.atan2(rot[1, 0], rot[0, 0])   # heading of the egg's long axis
+        axis = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+        grasp = np.asarray(position) + params['position'] * axis
+        self.gripper.place(tuple(grasp), physics.client.getQuaternionFromEuler((0, 0, yaw)),
+                           approach=APPROACH_DISTANCE, lift=0.0, opening=OPEN_WIDTH)
+
+    def control(self, physics: Physics) -> None:
+        t = physics.time
+        approach = APPROACH_DISTANCE * (1.0 - _min_jerk(t, SETTLED, APPROACHED))
+        lift = LIFT_HEIGHT * _min_jerk(t, SQUEEZED, LIFTED)
+        self.gripper.move(approach, lift)
+        if t >= APPROACHED and self.gripper.command != 'close':
+            self.gripper.close(self.force, CLOSING_SPEED)
+
+
+PROGRAM = register(Program(
+    name='grasp_object',
+    params=(
+        Parameter('force', 'N', 0.1, 50.0, 5.0, 'grip force of each finger'),
+        Parameter('position', 'm', -0.04, 0.04, 0.0,
+                  'centre of the gripper pads relative to the centre of the egg, '
+                  'along its long axis'),
+    ),
+    create=GraspObject,
+    doc=__doc__.splitlines()[0],
+))

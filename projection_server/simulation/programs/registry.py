@@ -1,0 +1,121 @@
+"""Registry of robot control programs and their formal parameters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Any, Callable, Protocol, TYPE_CHECKING
+
+from projection_server.simulation.errors import ProjectionError
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    import numpy as np
+
+    from projection_server.simulation.physics import Physics
+    from projection_server.simulation.scenario import Scenario
+
+__all__ = ['Parameter', 'Program', 'Task', 'describe', 'get', 'register']
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A formal parameter of a program: a number in ``[min, max]`` measured in ``unit``."""
+
+    name: str
+    unit: str
+    min: float
+    max: float
+    default: float
+    doc: str = ''
+
+    def describe(self) -> dict[str, Any]:
+        return {'name': self.name, 'unit': self.unit, 'min': self.min, 'max': self.max,
+                'default': self.default, 'doc': self.doc}
+
+
+class Task(Protocol):
+    """One run of a program in a world: called at every control step until ``duration``."""
+
+    duration: float
+
+    def control(self, physics: Physics) -> None:
+        """Set the actuators' commands for the current control step."""
+
+
+@dataclass(frozen=True)
+class Program:
+    """A registered control program: name, formal parameters and a task factory.
+
+    ``create(physics, scenario, params, rng)`` sets the program's robot up in a freshly built
+    world and returns its :class:`Task`; ``rng`` is seeded from the projection's key.
+    """
+
+    name: str
+    params: tuple[Parameter, ...]
+    create: Callable[[Physics, Scenario, dict[str, float], np.random.Generator], Task]
+    doc: str = ''
+
+    def check(self, values: Mapping[str, Any]) -> dict[str, float]:
+        """Actual parameter values: given ones checked against their ranges, defaults added.
+
+        Raises:
+            ProjectionError: kind ``invalid_parameters``.
+        """
+        if not isinstance(values, dict):
+            raise ProjectionError('invalid_parameters', 'parameters must be a dict')
+        known = {p.name: p for p in self.params}
+        unknown = sorted(set(values) - set(known))
+        if unknown:
+            raise ProjectionError(
+                'invalid_parameters',
+                f'{self.name} has no parameter {", ".join(unknown)} (has: {", ".join(known)})')
+        checked = {}
+        for name, param in known.items():
+            value = values.get(name, param.default)
+            if (isinstance(value, bool) or not isinstance(value, (int, float))
+                    or not math.isfinite(value)):
+                raise ProjectionError('invalid_parameters',
+                                      f'{self.name}: {name} must be a number, got {value!r}')
+            if not param.min <= value <= param.max:
+                raise ProjectionError(
+                    'invalid_parameters',
+                    f'{self.name}: {name} = {value} {param.unit} is outside '
+                    f'[{param.min}, {param.max}]')
+            checked[name] = float(value)
+        return checked
+
+    def describe(self) -> dict[str, Any]:
+        return {'program': self.name, 'doc': self.doc,
+                'params': [p.describe() for p in self.params]}
+
+
+_PROGRAMS: dict[str, Program] = {}
+
+
+def register(program: Program) -> Program:
+    """Add ``program`` to the registry (names are unique)."""
+    if program.name in _PROGRAMS:
+        raise ValueError(f'program {program.name!r} is registered already')
+    _PROGRAMS[program.name] = program
+    return program
+
+
+def get(name: str) -> Program:
+    """The program called ``name``.
+
+    Raises:
+        ProjectionError: kind ``unknown_program``.
+    """
+    try:
+        return _PROGRAMS[name]
+    except (KeyError, TypeError):
+        raise ProjectionError(
+            'unknown_program',
+            f'no program {name!r} (known: {", ".join(sorted(_PROGRAMS))})') from None
+
+
+def describe() -> list[dict[str, Any]]:
+    """Every program with its formal parameters, for Prolog (sorted by name)."""
+    return [_PROGRAMS[name].describe() for name in sorted(_PROGRAMS)]

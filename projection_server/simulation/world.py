@@ -1,0 +1,313 @@
+"""The one builder from a scenario description to a PyBullet world.
+
+Every physical property comes from the scenario (see
+:data:`projection_server.simulation.scenario.PROPERTIES` for names, defaults and units) or
+from an asset file; the engine's own settings come from ``config/physics.yaml``.
+
+How each class becomes bodies (poses are world poses of the object's centre unless said):
+
+* ``environment``: a container; its parts are built in its place.
+* ``floor``: a static plane at the pose's z.
+* ``table``: a static slab ``size_x`` x ``size_y`` x ``size_z`` whose top is at ``height``
+  (default: the pose's z), centred at the pose's x, y, turned by its yaw. Legs are not built.
+* ``robot``: the gripper asset named by ``gripper`` (``assets/<name>.urdf`` + ``.yaml``),
+  parked 1 m above the pose; control programs move it. No arm is simulated.
+* ``egg``: a convex ellipsoid, long axis (``length``) along its x, with the
+  :class:`~projection_server.simulation.object_models.EggShell` object model.
+* ``cup``, ``pancake_maker``, ``pancake``: upright cylinders (``diameter``, ``height``);
+  ``spatula``: a box; ``particle_fluid``: ``count`` spheres in a cubic block at the pose.
+  Bodies with ``mass`` 0 are static.
+"""
+
+from __future__ import annotations
+
+import functools
+from importlib import resources
+import math
+from pathlib import Path
+from typing import Any, Callable, TYPE_CHECKING
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.object_models import EggShell
+from projection_server.simulation.physics import Body, Gripper, Pad, Physics, Shape
+
+if TYPE_CHECKING:
+    from projection_server.simulation.scenario import Entity, Scenario
+    from projection_server.simulation.settings import PhysicsSettings, Settings
+
+__all__ = ['assets_dir', 'build_world', 'ellipsoid_vertices']
+
+PARK_HEIGHT = 1.0   # m above the robot's pose, out of the way until a program moves it
+EGG_COLOR = (0.95, 0.9, 0.8, 1.0)
+REMAINS_COLOR = (0.95, 0.75, 0.2, 1.0)
+REMAINS_FLATNESS = 0.3   # height of a broken egg's remains relative to its diameter
+
+
+def assets_dir() -> Path:
+    """Directory of the simulation's data files (URDF, gripper descriptions)."""
+    return Path(str(resources.files('projection_server.simulation').joinpath('assets')))
+
+
+def build_world(client: Any, scenario: Scenario, settings: Settings) -> Physics:
+    """Configure ``client`` from ``settings`` and build every entity of ``scenario`` in it."""
+    _configure(client, settings.physics)
+    physics = Physics(client, settings)
+    grippers = {e.name: e for e in scenario.entities if e.cls == 'gripper'}
+    for entity in scenario.entities:
+        if entity.cls == 'robot':
+            _build_robot(physics, entity, grippers.get(entity.properties['gripper']))
+        elif entity.cls != 'gripper':   # grippers are built by their robot
+            _BUILDERS[entity.cls](physics, entity)
+    return physics
+
+
+def ellipsoid_vertices(semi_axes: tuple[float, float, float],
+                       segments: tuple[int, int]) -> list[tuple[float, float, float]]:
+    """Vertices of an ellipsoid: rings along x (``segments[0]``, even so that the equator is
+    a ring) of ``segments[1]`` points each, plus the two poles."""
+    a, b, c = semi_axes
+    rings, around = segments
+    vertices = [(a, 0.0, 0.0), (-a, 0.0, 0.0)]
+    for i in range(1, rings):
+        theta = math.pi * i / rings
+        x, s = a * math.cos(theta), math.sin(theta)
+        for j in range(around):
+            phi = 2 * math.pi * j / around
+            vertices.append((x, b * s * math.cos(phi), c * s * math.sin(phi)))
+    return vertices
+
+
+def _configure(client: Any, s: PhysicsSettings) -> None:
+    client.resetSimulation()
+    client.setPhysicsEngineParameter(
+        fixedTimeStep=s.time_step, numSubSteps=0, numSolverIterations=s.solver_iterations,
+        erp=s.erp, contactERP=s.contact_erp, frictionERP=s.friction_erp,
+        contactBreakingThreshold=s.contact_breaking_threshold,
+        deterministicOverlappingPairs=s.deterministic_overlapping_pairs)
+    client.setGravity(*s.gravity)
+
+
+def _orientation(client: Any, entity: Entity) -> tuple[float, ...]:
+    return client.getQuaternionFromEuler(entity.pose.rpy)
+
+
+def _surface(client: Any, body_id: int, props: dict[str, Any]) -> None:
+    client.changeDynamics(body_id, -1, lateralFriction=props['friction'],
+                          restitution=props['restitution'])
+
+
+def _build_environment(physics: Physics, entity: Entity) -> None:
+    """Nothing of its own: its parts are entities of the scenario."""
+
+
+def _build_floor(physics: Physics, entity: Entity) -> None:
+    c = physics.client
+    shape = c.createCollisionShape(c.GEOM_PLANE)
+    body = c.createMultiBody(0.0, shape, -1, (0.0, 0.0, entity.pose.xyz[2]))
+    _surface(c, body, entity.properties)
+    physics.add_body(Body(entity.name, entity.cls, body, True,
+                          Shape('box', (20.0, 20.0, 0.001), (0.5, 0.5, 0.5, 1.0))))
+
+
+def _build_table(physics: Physics, entity: Entity) -> None:
+    c, p = physics.client, entity.properties
+    size = (p['size_x'], p['size_y'], p['size_z'])
+    top = p.get('height', entity.pose.xyz[2])
+    shape = c.createCollisionShape(c.GEOM_BOX, halfExtents=[s / 2 for s in size])
+    position = (entity.pose.xyz[0], entity.pose.xyz[1], top - size[2] / 2)
+    yaw = c.getQuaternionFromEuler((0.0, 0.0, entity.pose.rpy[2]))
+    body = c.createMultiBody(0.0, shape, -1, position, yaw)
+    _surface(c, body, p)
+    physics.add_body(Body(entity.name, entity.cls, body, True,
+                          Shape('box', size, (0.6, 0.4, 0.2, 1.0))))
+
+
+def _build_robot(physics: Physics, entity: Entity, gripper: Entity | None = None) -> None:
+    """The robot's gripper on its gantry; ``gripper`` is the gripper's own entity, if the
+    scenario describes it (its friction and asset then come from there)."""
+    c = physics.client
+    asset = (Path(gripper.properties['urdf']).stem if gripper is not None
+             else entity.properties['gripper'])
+    spec = _gripper_spec(asset)
+    urdf = assets_dir() / spec['urdf']
+    x, y, z = entity.pose.xyz
+    body_id = c.loadURDF(str(urdf), (x, y, z + PARK_HEIGHT), useFixedBase=True)
+    joints, links = {}, {}
+    for j in range(c.getNumJoints(body_id)):
+        info = c.getJointInfo(body_id, j)
+        joints[info[1].decode()] = j
+        links[j] = info[12].decode()
+    link_index = {name: j for j, name in links.items()}
+    try:
+        joint_map = {'lift': joints[spec['joints']['lift']],
+                     'approach': joints[spec['joints']['approach']],
+                     'fingers': [joints[n] for n in spec['joints']['fingers']]}
+        boxes = _urdf_boxes(urdf)
+        pads = [_pad(link_index[pad['link']], pad, boxes[pad['collision']],
+                     float(spec['pad_stiffness']), float(spec['pad_rim_radius']))
+                for pad in spec['pads']]
+    except KeyError as exc:
+        raise ProjectionError('invalid_scenario',
+                              f'gripper asset {spec["urdf"]}: unknown name {exc}') from exc
+    link_shapes: dict[int, list[tuple[Shape, tuple[float, float, float]]]] = {}
+    for box in boxes.values():
+        link_shapes.setdefault(link_index[box['link']], []).append(
+            (Shape('box', box['size'], (0.3, 0.3, 0.35, 1.0)), box['origin']))
+    if gripper is not None:
+        for link in range(-1, c.getNumJoints(body_id)):
+            c.changeDynamics(body_id, link,
+                             lateralFriction=float(gripper.properties['friction']),
+                             restitution=float(gripper.properties['restitution']))
+    body = physics.add_body(Body(entity.name, entity.cls, body_id, False, None,
+                                 links=links, link_shapes=link_shapes))
+    physics.grippers[entity.name] = Gripper(c, body.name, body_id, joint_map, pads,
+                                            float(spec['gantry_force']))
+
+
+@functools.cache
+def _gripper_spec(name: str) -> dict[str, Any]:
+    import yaml
+
+    path = assets_dir() / f'{name}.yaml'
+    if not path.is_file():
+        raise ProjectionError('invalid_scenario', f'unknown gripper {name!r} (no {path.name})')
+    return yaml.safe_load(path.read_text())
+
+
+@functools.cache
+def _urdf_boxes(path: Path) -> dict[str, dict[str, Any]]:
+    """Named collision boxes of a URDF: link, origin and size."""
+    boxes = {}
+    for link in ET.parse(path).getroot().iter('link'):
+        for collision in link.iter('collision'):
+            box = collision.find('geometry/box')
+            if box is None or not collision.get('name'):
+                continue
+            origin = collision.find('origin')
+            xyz = origin.get('xyz', '0 0 0') if origin is not None else '0 0 0'
+            boxes[collision.get('name')] = {
+                'link': link.get('name'),
+                'origin': tuple(float(v) for v in xyz.split()),
+                'size': tuple(float(v) for v in box.get('size').split())}
+    return boxes
+
+
+def _pad(link: int, pad: dict[str, Any], box: dict[str, Any], stiffness: float,
+         rim_radius: float) -> Pad:
+    normal = np.asarray(pad['normal'], dtype=float)
+    axis = int(np.argmax(np.abs(normal)))
+    size = np.asarray(box['size'])
+    centre = np.asarray(box['origin']) + normal * size[axis] / 2
+    others = [i for i in range(3) if i != axis]
+    axes = tuple(tuple(float(v) for v in np.eye(3)[i]) for i in others)
+    return Pad(link, pad['link'], tuple(centre), tuple(normal), axes,
+               (size[others[0]] / 2, size[others[1]] / 2), stiffness, rim_radius)
+
+
+def _build_egg(physics: Physics, entity: Entity) -> None:
+    c, p = physics.client, entity.properties
+    semi_axes = (p['length'] / 2, p['diameter'] / 2, p['diameter'] / 2)
+    body = _ellipsoid_body(physics, semi_axes, p['mass'], entity.pose.xyz,
+                           _orientation(c, entity))
+    _surface(c, body, p)
+    physics.add_body(Body(entity.name, entity.cls, body, False,
+                          Shape('sphere', tuple(2 * s for s in semi_axes), EGG_COLOR)))
+    physics.models.append(EggShell(entity.name, semi_axes, p.get('breaking_force'),
+                                   _remains_factory(semi_axes, p)))
+
+
+def _ellipsoid_body(physics: Physics, semi_axes: tuple[float, float, float], mass: float,
+                    position: Any, orientation: Any) -> int:
+    c = physics.client
+    vertices = ellipsoid_vertices(semi_axes, physics.settings.physics.ellipsoid_segments)
+    shape = c.createCollisionShape(c.GEOM_MESH, vertices=vertices)
+    body = c.createMultiBody(mass, shape, -1, position, orientation)
+    a, b, cc = semi_axes
+    # Bullet derives a hull's inertia from its bounding box; set the ellipsoid's own.
+    c.changeDynamics(body, -1, localInertiaDiagonal=[mass * (b * b + cc * cc) / 5,
+                                                     mass * (a * a + cc * cc) / 5,
+                                                     mass * (a * a + b * b) / 5])
+    return body
+
+
+def _remains_factory(semi_axes: tuple[float, float, float],
+                     props: dict[str, Any]) -> Callable[[Physics, str], None]:
+    """How a broken egg is replaced: a flat, spilled body of the same mass that the gripper's
+    pads no longer hold, lying where the egg was."""
+    def replace(physics: Physics, name: str) -> None:
+        c = physics.client
+        old = physics.body(name).body_id
+        position, orientation = c.getBasePositionAndOrientation(old)
+        yaw = c.getEulerFromQuaternion(orientation)[2]
+        flat = (semi_axes[0], semi_axes[1], semi_axes[2] * REMAINS_FLATNESS)
+        body = _ellipsoid_body(physics, flat, props['mass'], position,
+                               c.getQuaternionFromEuler((0.0, 0.0, yaw)))
+        _surface(c, body, props)
+        for gripper in physics.grippers.values():
+            for link in range(-1, c.getNumJoints(gripper.body_id)):
+                c.setCollisionFilterPair(body, gripper.body_id, -1, link, 0)
+        physics.replace_body(name, body, Shape('sphere', tuple(2 * s for s in flat),
+                                               REMAINS_COLOR))
+    return replace
+
+
+def _primitive(physics: Physics, entity: Entity, kind: str, size: tuple[float, float, float],
+               color: tuple[float, float, float, float]) -> None:
+    c, p = physics.client, entity.properties
+    if kind == 'box':
+        shape = c.createCollisionShape(c.GEOM_BOX, halfExtents=[s / 2 for s in size])
+    else:
+        shape = c.createCollisionShape(c.GEOM_CYLINDER, radius=size[0] / 2, height=size[2])
+    mass = p['mass']
+    body = c.createMultiBody(mass, shape, -1, entity.pose.xyz, _orientation(c, entity))
+    _surface(c, body, p)
+    physics.add_body(Body(entity.name, entity.cls, body, mass == 0.0,
+                          Shape(kind if kind == 'box' else 'cylinder', size, color)))
+
+
+def _build_cylinder(physics: Physics, entity: Entity) -> None:
+    p = entity.properties
+    colors = {'cup': (0.9, 0.9, 0.95, 1.0), 'pancake_maker': (0.2, 0.2, 0.2, 1.0),
+              'pancake': (0.85, 0.65, 0.3, 1.0)}
+    _primitive(physics, entity, 'cylinder', (p['diameter'], p['diameter'], p['height']),
+               colors[entity.cls])
+
+
+def _build_spatula(physics: Physics, entity: Entity) -> None:
+    p = entity.properties
+    _primitive(physics, entity, 'box', (p['size_x'], p['size_y'], p['size_z']),
+               (0.5, 0.5, 0.55, 1.0))
+
+
+def _build_particle_fluid(physics: Physics, entity: Entity) -> None:
+    c, p = physics.client, entity.properties
+    count, radius = int(p['count']), p['particle_radius']
+    side = math.ceil(count ** (1 / 3))
+    spacing = 2.05 * radius
+    shape = c.createCollisionShape(c.GEOM_SPHERE, radius=radius)
+    offset = (side - 1) * spacing / 2
+    for i in range(count):
+        ix, iy, iz = i % side, (i // side) % side, i // (side * side)
+        position = [entity.pose.xyz[k] + (n * spacing - offset) for k, n in
+                    enumerate((ix, iy, iz))]
+        body = c.createMultiBody(p['particle_mass'], shape, -1, position)
+        _surface(c, body, p)
+        physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False,
+                              Shape('sphere', (2 * radius,) * 3, (0.95, 0.9, 0.6, 1.0))))
+
+
+_BUILDERS: dict[str, Callable[[Physics, Entity], None]] = {
+    'environment': _build_environment,
+    'floor': _build_floor,
+    'table': _build_table,
+    'robot': _build_robot,
+    'egg': _build_egg,
+    'cup': _build_cylinder,
+    'pancake_maker': _build_cylinder,
+    'pancake': _build_cylinder,
+    'spatula': _build_spatula,
+    'particle_fluid': _build_particle_fluid,
+}

@@ -1,0 +1,310 @@
+"""Translation of a projection bag into a timeline of fluents, events and quantities.
+
+``translate_bag(path)`` returns the dict of ``docs/contracts.md``. Every monitoring sample
+(one ``ContactArray``, ``/tf``, ``GripperState`` and ``ObjectStateArray`` per step) gives a
+truth value of each fluent; fluents hold on maximal intervals of true samples, with gaps
+shorter than ``timeline.gap_merge`` merged; events are read off those intervals. The
+thresholds are the ``timeline`` settings recorded in the bag itself.
+
+Fluents (arguments are entity names):
+
+* ``contact(A, B)``: A and B touch with at least ``contact_force_min``; A < B by name.
+* ``supported_by(A, B)``: A touches B (not a gripper) and the contact normal, from B to A,
+  is within ``support_max_angle`` of straight up.
+* ``in_gripper(O)``: O touches every finger link of a gripper.
+* ``on(O, S)``: O is supported by S and not in a gripper (it rests on S).
+* ``broken(O)``: O's object model reports it broken.
+
+Events (``[name, args, start, end]``, points have start = end):
+
+* ``grasp(O)``: an ``in_gripper(O)`` interval begins.
+* ``release(O)``: it ends while its gripper's command is ``open``.
+* ``lift(O)``: a ``supported_by(O, S)`` interval ends while O is in the gripper.
+* ``slip(O)``: while O is held and not broken, it moves by more than ``slip_distance`` or
+  turns by more than ``slip_angle`` relative to the gripper (measured from ``grasp_settle``
+  after the grasp; the event spans from the last sample within a fifth of the threshold to
+  the sample that crosses it); or it leaves the gripper while the command is not ``open``.
+* ``break(O)``: ``broken(O)`` begins.
+* ``drop(O)``: O touches nothing for at least ``drop_min_duration`` and falls meanwhile;
+  the event spans that time.
+
+Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects,
+``lift_height(O)`` [m] (highest minus initial height) of every moving body.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+import json
+import math
+import os
+from typing import Any
+
+import numpy as np
+
+from projection_server.bags import read_bag, TOPICS
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.settings import TimelineSettings
+from projection_server.timeline.intervals import fluent_intervals, holds_at, Interval
+
+__all__ = ['translate_bag']
+
+
+
+@dataclass
+class _Sample:
+    """What one monitoring step logged."""
+
+    t: float
+    poses: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    moving: set[str] = field(default_factory=set)
+    contacts: list[Any] = field(default_factory=list)
+    grippers: dict[str, Any] = field(default_factory=dict)
+    objects: dict[str, Any] = field(default_factory=dict)
+
+
+def translate_bag(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The timeline of the projection logged in the bag at ``path``.
+
+    Raises:
+        ProjectionError: kind ``bag_error`` if the bag cannot be read or is not a projection.
+    """
+    info, samples = _read(path)
+    settings = TimelineSettings(**json.loads(info.settings_json)['timeline'])
+    timeline = _Timeline(samples, settings)
+    return {
+        'fluents': timeline.fluents(),
+        'events': timeline.events(),
+        'quantities': timeline.quantities(),
+        'meta': {
+            'bag': os.fspath(path), 'scenario': info.scenario_name, 'program': info.program,
+            'params': json.loads(info.parameters_json), 'job_key': info.job_key,
+            'code_version': info.code_version,
+            'duration': samples[-1].t if samples else 0.0, 'samples': len(samples),
+            'timeline_settings': json.loads(info.settings_json)['timeline'],
+        },
+    }
+
+
+def _read(path: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
+    info = None
+    by_time: dict[int, _Sample] = {}
+    static: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    topics = [TOPICS[name] for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
+                                        'objects')]
+    for topic, t_ns, msg in read_bag(path, topics):
+        if topic == TOPICS['info']:
+            info = msg
+            continue
+        if topic == TOPICS['tf_static']:
+            static.update(_poses(msg))
+            continue
+        sample = by_time.get(t_ns)
+        if sample is None:
+            sample = by_time[t_ns] = _Sample(t_ns / 1e9)
+        if topic == TOPICS['tf']:
+            poses = _poses(msg)
+            sample.poses.update(poses)
+            sample.moving.update(name for name in poses if '/' not in name)
+        elif topic == TOPICS['contacts']:
+            sample.contacts = list(msg.contacts)
+        elif topic == TOPICS['gripper']:
+            sample.grippers[msg.name] = msg
+        elif topic == TOPICS['objects']:
+            sample.objects = {o.name: o for o in msg.objects}
+    if info is None:
+        raise ProjectionError('bag_error', f'{path}: no {TOPICS["info"]} message')
+    samples = [by_time[t] for t in sorted(by_time)]
+    for sample in samples:
+        for name, pose in static.items():
+            sample.poses.setdefault(name, pose)
+    return info, samples
+
+
+def _poses(msg: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    out = {}
+    for tr in msg.transforms:
+        t, q = tr.transform.translation, tr.transform.rotation
+        out[tr.child_frame_id] = (np.array([t.x, t.y, t.z]), _matrix((q.x, q.y, q.z, q.w)))
+    return out
+
+
+def _matrix(q: tuple[float, float, float, float]) -> np.ndarray:
+    x, y, z, w = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+class _Timeline:
+    """Fluents, events and quantities of a list of samples."""
+
+    def __init__(self, samples: list[_Sample], settings: TimelineSettings):
+        self.samples = samples
+        self.settings = settings
+        self.times = [x.t for x in samples]
+        self.end = self.times[-1] if self.times else 0.0
+        self.grippers = sorted({g for x in samples for g in x.grippers})
+        # Moving bodies: logged on /tf (static ones are on /tf_static), without link frames.
+        self.bodies = sorted({name for x in samples for name in x.moving} - set(self.grippers))
+        self._booleans: dict[tuple[str, tuple[str, ...]], list[bool]] = defaultdict(
+            lambda: [False] * len(samples))
+        self._sample_fluents()
+        self._intervals = {key: fluent_intervals(self.times, values, self.settings.gap_merge)
+                           for key, values in self._booleans.items()}
+        for key, values in self._booleans.items():
+            if key[0] == 'broken':   # monotone, and a break must not be merged away
+                self._intervals[key] = fluent_intervals(self.times, values, 0.0)
+
+    # --- fluents ------------------------------------------------------------------------
+    def _sample_fluents(self) -> None:
+        cos_support = math.cos(self.settings.support_max_angle)
+        for i, sample in enumerate(self.samples):
+            touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
+            held: set[str] = set()
+            for c in sample.contacts:
+                if c.normal_force < self.settings.contact_force_min or c.body_a == c.body_b:
+                    continue
+                self._booleans[('contact', tuple(sorted((c.body_a, c.body_b))))][i] = True
+                touching[c.body_a].add((c.body_b, c.link_b))
+                touching[c.body_b].add((c.body_a, c.link_a))
+                for obj, support, up in ((c.body_a, c.body_b, c.normal.z),
+                                         (c.body_b, c.body_a, -c.normal.z)):
+                    if support not in self.grippers and up >= cos_support:
+                        self._booleans[('supported_by', (obj, support))][i] = True
+            for name, gripper in sample.grippers.items():
+                fingers = {(name, link) for link in gripper.finger_links}
+                for obj, links in touching.items():
+                    if fingers and fingers <= links:
+                        held.add(obj)
+                        self._booleans[('in_gripper', (obj,))][i] = True
+            for key in [k for k in self._booleans if k[0] == 'supported_by']:
+                if self._booleans[key][i] and key[1][0] not in held:
+                    self._booleans[('on', key[1])][i] = True
+            for name, state in sample.objects.items():
+                if state.broken:
+                    self._booleans[('broken', (name,))][i] = True
+
+    def fluents(self) -> list[list[Any]]:
+        rows = [[name, list(args), start, end]
+                for (name, args), intervals in self._intervals.items()
+                for start, end in intervals]
+        return sorted(rows, key=lambda r: (r[2], r[0], r[1]))
+
+    def intervals(self, name: str, *args: str) -> list[Interval]:
+        return self._intervals.get((name, args), [])
+
+    # --- events -------------------------------------------------------------------------
+    def events(self) -> list[list[Any]]:
+        events: list[list[Any]] = []
+        for (name, args), intervals in sorted(self._intervals.items()):
+            obj = args[0]
+            for start, end in intervals:
+                if name == 'in_gripper':
+                    events.append(['grasp', [obj], start, start])
+                    events.extend(self._slip(obj, start, end))
+                    if end < self.end and self._command_after(end) == 'open':
+                        events.append(['release', [obj], end, end])
+                elif name == 'supported_by':
+                    if end < self.end and holds_at(self.intervals('in_gripper', obj), end):
+                        events.append(['lift', [obj], end, end])
+                elif name == 'broken':
+                    events.append(['break', [obj], start, start])
+        events.extend(self._drops())
+        unique = {(e[0], tuple(e[1]), e[2], e[3]) for e in events}
+        return [[n, list(a), s, e] for n, a, s, e in sorted(unique, key=lambda r: (r[2], r[0],
+                                                                                  r[1]))]
+
+    def _slip(self, obj: str, start: float, end: float) -> list[list[Any]]:
+        reference = None
+        onset = start
+        for sample in self.samples:
+            if sample.t < start or sample.t > end or self._broken_at(obj, sample.t):
+                continue
+            relative = self._relative_pose(obj, sample)
+            if relative is None:
+                continue
+            if reference is None:
+                if sample.t >= min(start + self.settings.grasp_settle, end):
+                    reference = relative
+                    onset = sample.t
+                continue
+            distance = float(np.linalg.norm(relative[0] - reference[0]))
+            cos_angle = (np.trace(reference[1].T @ relative[1]) - 1.0) / 2.0
+            angle = math.acos(min(1.0, max(-1.0, cos_angle)))
+            # Relative to the thresholds: 1 means slipped; below 1/5 the grip still holds.
+            moved = max(distance / self.settings.slip_distance, angle / self.settings.slip_angle)
+            if moved > 1.0:
+                return [['slip', [obj], onset, sample.t]]
+            if moved <= 0.2:
+                onset = sample.t
+        after = self._next_time(end)
+        if after is not None and self._command_after(end) != 'open' \
+                and not self._broken_at(obj, after):
+            return [['slip', [obj], end, end]]
+        return []
+
+    def _drops(self) -> list[list[Any]]:
+        events = []
+        for obj in self.bodies:
+            contacts = [iv for (name, args), ivs in self._intervals.items()
+                        if name == 'contact' and obj in args for iv in ivs]
+            free = [not holds_at(contacts, t) for t in self.times]
+            for start, end in fluent_intervals(self.times, free, 0.0):
+                if end - start < self.settings.drop_min_duration:
+                    continue
+                if self._height(obj, end) < self._height(obj, start):
+                    events.append(['drop', [obj], start, end])
+        return events
+
+    # --- quantities ---------------------------------------------------------------------
+    def quantities(self) -> list[list[Any]]:
+        rows: list[list[Any]] = []
+        loads: dict[str, float] = {}
+        limits: dict[str, float] = {}
+        for sample in self.samples:
+            for name, state in sample.objects.items():
+                loads[name] = max(loads.get(name, 0.0), state.load)
+                if state.load_limit > 0:
+                    limits[name] = state.load_limit
+        rows += [['max_load', [name], value] for name, value in sorted(loads.items())]
+        rows += [['load_limit', [name], value] for name, value in sorted(limits.items())]
+        for obj in self.bodies:
+            heights = [float(x.poses[obj][0][2]) for x in self.samples if obj in x.poses]
+            rows.append(['lift_height', [obj], max(heights) - heights[0]])
+        return rows
+
+    # --- helpers ------------------------------------------------------------------------
+    def _next_time(self, time: float) -> float | None:
+        """The first sample time after ``time``, None at the end."""
+        return next((t for t in self.times if t > time), None)
+
+    def _command_after(self, time: float) -> str:
+        for sample in self.samples:
+            if sample.t > time and sample.grippers:
+                return next(iter(sample.grippers.values())).command
+        return ''
+
+    def _broken_at(self, obj: str, time: float) -> bool:
+        return holds_at(self.intervals('broken', obj), time)
+
+    def _height(self, obj: str, time: float) -> float:
+        for sample in self.samples:
+            if sample.t >= time and obj in sample.poses:
+                return float(sample.poses[obj][0][2])
+        return math.nan
+
+    def _relative_pose(self, obj: str,
+                       sample: _Sample) -> tuple[np.ndarray, np.ndarray] | None:
+        """Pose of ``obj`` in the frame between the fingers of the gripper holding it."""
+        for name, gripper in sample.grippers.items():
+            frames = [sample.poses.get(f'{name}/{link}') for link in gripper.finger_links]
+            if obj not in sample.poses or not frames or any(f is None for f in frames):
+                continue
+            origin = sum(f[0] for f in frames) / len(frames)
+            rot = frames[0][1]
+            position, orientation = sample.poses[obj]
+            return rot.T @ (position - origin), rot.T @ orientation
+        return None

@@ -1,0 +1,52 @@
+"""Fixtures of the simulation tests: a grasping scenario and a small projection pool."""
+
+from __future__ import annotations
+
+import copy
+
+import pytest
+
+from projection_server.simulation.pool import WorkerPool
+
+# The grasping scenario of Kunze et al. (2011), sec. IV-A, in the form of docs/contracts.md.
+# The egg's breaking force (10 N) puts the break between 9 and 11 N at the centre.
+GRASPING = {
+    'name': 'grasping',
+    'entities': [
+        {'name': 'kitchen_env', 'class': 'environment',
+         'pose': {'xyz': [0.0, 0.0, 0.0], 'rpy': [0.0, 0.0, 0.0]}, 'properties': {},
+         'parts': [
+             {'name': 'floor1', 'class': 'floor', 'properties': {'friction': 0.8}},
+             {'name': 'table1', 'class': 'table',
+              'pose': {'xyz': [0.0, 0.0, 0.72], 'rpy': [0.0, 0.0, 0.0]},
+              'properties': {'shape': 'box', 'size_x': 1.2, 'size_y': 0.8, 'size_z': 0.04,
+                             'height': 0.72, 'mass': 0.0, 'friction': 0.6,
+                             'restitution': 0.1}},
+         ]},
+        {'name': 'pr2_robot', 'class': 'robot',
+         'pose': {'xyz': [-0.6, 0.0, 0.0], 'rpy': [0.0, 0.0, 0.0]},
+         'properties': {'gripper': 'pr2_gripper'}},
+        {'name': 'egg1', 'class': 'egg',
+         'pose': {'xyz': [0.0, 0.0, 0.742], 'rpy': [0.0, 0.0, 0.0]},
+         'properties': {'shape': 'ellipsoid', 'length': 0.058, 'diameter': 0.044,
+                        'mass': 0.06, 'friction': 0.3, 'restitution': 0.05,
+                        'breaking_force': 10.0}},
+    ],
+}
+
+
+@pytest.fixture
+def make_scenario():
+    """``make_scenario(**egg_properties)``: the grasping scenario with changed egg properties."""
+    def make(**egg):
+        scenario = copy.deepcopy(GRASPING)
+        scenario['entities'][-1]['properties'].update(egg)
+        return scenario
+    return make
+
+
+@pytest.fixture(scope='module')
+def pool(tmp_path_factory):
+    """One worker, bags in a fresh directory; shared by the tests of a module."""
+    with WorkerPool(tmp_path_factory.mktemp('bags'), workers=1) as shared:
+        yield shared

@@ -1,0 +1,82 @@
+"""The egg shell's contact-pressure model (equivalent loads)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from projection_server.simulation import contact_mechanics as cm
+
+EGG = (0.029, 0.022, 0.022)     # semi-axes [m]
+K = 1.0e9                       # pad foundation modulus [N/m^3]
+RIM = 0.005                     # pad rim radius [m]
+ROT, POS = np.eye(3), np.zeros(3)
+AXES = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])   # pad face: along the egg, and up
+NORMAL = np.array([0.0, -1.0, 0.0])                  # from the pad (at +y) to the egg
+
+
+def load_of_pad(force, offset, half_length=0.022):
+    """Equivalent load of a pad at +y whose centre is ``offset`` along the egg's axis."""
+    centre = np.array([offset, EGG[1], 0.0])
+    peak = cm.pad_peak_pressure(force, EGG, ROT, POS, centre, AXES, NORMAL,
+                                (half_length, 0.01), K, RIM)
+    return cm.equivalent_load(peak, K, EGG)
+
+
+def test_a_centred_pad_loads_the_egg_with_the_grip_force():
+    for force in (1.0, 5.0, 11.0):
+        assert load_of_pad(force, 0.0) == pytest.approx(force, rel=1e-6)
+
+
+def test_the_numerical_solution_matches_the_closed_form_on_a_large_face():
+    centre = np.array([0.0, EGG[1], 0.0])
+    closed = math.sqrt(K * 10.0 / (math.pi * EGG[0]))
+    large = cm.pad_peak_pressure(10.0, EGG, ROT, POS, centre, AXES, NORMAL, (0.05, 0.05), K,
+                                 RIM)
+    small = cm.pad_peak_pressure(10.0, EGG, ROT, POS, centre, AXES, NORMAL, (0.0035, 0.0035),
+                                 K, RIM)
+    assert large == pytest.approx(closed, rel=0.01)
+    assert small > closed   # the small face cuts the patch: the pressure rises
+
+
+def test_a_pad_edge_near_the_equator_concentrates_the_load():
+    assert load_of_pad(9.0, 0.02) > 1.1 * 9.0
+    assert load_of_pad(9.0, 0.02) > load_of_pad(9.0, 0.015) > 0.98 * 9.0
+
+
+def test_the_edge_effect_grows_with_the_force():
+    ratios = [load_of_pad(f, 0.02) / f for f in (1.0, 5.0, 11.0)]
+    assert ratios == sorted(ratios)
+
+
+def test_a_shell_on_the_rim_is_loaded_by_the_rims_curvature():
+    # The pad's lower rim rides on the egg's upper half (as when the egg slips down).
+    centre = np.array([0.0, EGG[1], 0.016])
+    load = cm.equivalent_load(cm.pad_peak_pressure(3.0, EGG, ROT, POS, centre, AXES, NORMAL,
+                                                   (0.022, 0.01), K, RIM), K, EGG)
+    assert 1.5 * 3.0 < load < 4.0 * 3.0
+    sharper = cm.pad_peak_pressure(3.0, EGG, ROT, POS, centre, AXES, NORMAL, (0.022, 0.01),
+                                   K, RIM / 5)
+    assert cm.equivalent_load(sharper, K, EGG) > load
+
+
+def test_a_pad_beside_the_shell_carries_nothing():
+    centre = np.array([0.2, EGG[1], 0.0])
+    assert cm.pad_peak_pressure(5.0, EGG, ROT, POS, centre, AXES, NORMAL, (0.01, 0.01),
+                                K, RIM) is None
+
+
+def test_the_pointed_end_is_weaker_than_the_side_on_a_flat_surface():
+    side = cm.curvature_load(1.0, EGG, np.array([0.0, 0.0, EGG[2]]))
+    end = cm.curvature_load(1.0, EGG, np.array([EGG[0], 0.0, 0.0]))
+    assert side == pytest.approx(1.0)
+    assert end == pytest.approx(EGG[0] ** 2 / EGG[1] ** 2)
+
+
+def test_indentation_balances_the_force_exactly():
+    gaps = np.array([0.0, 1e-4, 2e-4, 5e-4])
+    delta, active = cm.winkler_indentation(gaps, 1e-6, 0.1, 1e9)
+    assert 1e9 * 1e-6 * np.clip(delta - gaps, 0, None).sum() == pytest.approx(0.1)
+    assert active == int((gaps < delta).sum())

@@ -1,0 +1,94 @@
+"""grasp_object: outcomes emerge from physics and show up in the timeline."""
+
+from __future__ import annotations
+
+import pytest
+
+from projection_server.simulation import Job
+from projection_server.simulation.runner import run_projection
+from projection_server.timeline.translate import translate_bag
+
+
+@pytest.fixture(scope='module')
+def project(pool):
+    """``project(scenario, force, position)`` -> timeline, through the worker pool."""
+    def run(scenario, force, position=0.0):
+        job = Job.checked(scenario, 'grasp_object', {'force': force, 'position': position})
+        return translate_bag(pool.run(job, timeout=60.0))
+    return run
+
+
+def events(timeline, name, obj='egg1'):
+    return [e for e in timeline['events'] if e[0] == name and e[1] == [obj]]
+
+
+def quantity(timeline, name, obj='egg1'):
+    (value,) = [q[2] for q in timeline['quantities'] if q[0] == name and q[1] == [obj]]
+    return value
+
+
+def test_a_weak_grip_lets_the_egg_slip(project, make_scenario):
+    timeline = project(make_scenario(), force=1.0)
+    assert events(timeline, 'grasp') and events(timeline, 'slip')
+    assert not events(timeline, 'break') and not events(timeline, 'lift')
+    assert quantity(timeline, 'lift_height') < 0.01
+
+
+def test_a_moderate_grip_lifts_the_egg(project, make_scenario):
+    timeline = project(make_scenario(), force=5.0)
+    assert events(timeline, 'grasp') and events(timeline, 'lift')
+    assert not events(timeline, 'slip') and not events(timeline, 'break')
+    assert quantity(timeline, 'lift_height') == pytest.approx(0.1, abs=0.01)
+    (held,) = [f for f in timeline['fluents'] if f[:2] == ['in_gripper', ['egg1']]]
+    assert held[3] == timeline['meta']['duration']
+
+
+def test_a_hard_grip_breaks_the_egg(project, make_scenario):
+    timeline = project(make_scenario(), force=11.0)
+    assert events(timeline, 'break')
+    assert ['broken', ['egg1']] in [f[:2] for f in timeline['fluents']]
+    assert quantity(timeline, 'max_load') >= quantity(timeline, 'load_limit') == 10.0
+
+
+def test_a_stronger_shell_survives_the_same_grip(project, make_scenario):
+    timeline = project(make_scenario(breaking_force=20.0), force=11.0)
+    assert not events(timeline, 'break') and events(timeline, 'lift')
+
+
+def test_an_off_centre_grip_breaks_the_egg_at_a_lower_force(project, make_scenario):
+    assert not events(project(make_scenario(), force=9.0, position=0.0), 'break')
+    assert events(project(make_scenario(), force=9.0, position=0.02), 'break')
+
+
+def test_a_heavier_egg_needs_a_firmer_grip(project, make_scenario):
+    assert not events(project(make_scenario(), force=3.0), 'slip')
+    assert events(project(make_scenario(mass=0.15), force=3.0), 'slip')
+
+
+def test_the_same_projection_gives_the_same_timeline_and_bag(make_scenario, tmp_path):
+    job = Job.checked(make_scenario(), 'grasp_object', {'force': 7.0, 'position': 0.02})
+    from projection_server.simulation import load_settings
+
+    settings = load_settings()
+    bags = [tmp_path / run / 'grasp' for run in ('a', 'b')]
+    for bag in bags:
+        bag.parent.mkdir()
+        run_projection(job, settings, bag)
+    first, second = (translate_bag(bag) for bag in bags)
+    assert first['fluents'] == second['fluents'] and first['events'] == second['events']
+    assert first['quantities'] == second['quantities']
+    assert (bags[0] / 'grasp.mcap').read_bytes() == (bags[1] / 'grasp.mcap').read_bytes()
+
+
+def test_the_timeline_has_the_contract_shape(project, make_scenario):
+    timeline = project(make_scenario(), force=5.0)
+    assert set(timeline) == {'fluents', 'events', 'quantities', 'meta'}
+    for name, args, start, end in timeline['fluents'] + timeline['events']:
+        assert isinstance(name, str) and all(isinstance(a, str) for a in args)
+        assert 0.0 <= start <= end <= timeline['meta']['duration']
+    assert timeline['meta']['program'] == 'grasp_object'
+    assert timeline['meta']['params'] == {'force': 5.0, 'position': 0.0}
+    fluents = {(f[0], tuple(f[1])) for f in timeline['fluents']}
+    assert {('contact', ('egg1', 'table1')), ('supported_by', ('egg1', 'table1')),
+            ('on', ('egg1', 'table1')), ('in_gripper', ('egg1',)),
+            ('contact', ('egg1', 'pr2_robot'))} <= fluents

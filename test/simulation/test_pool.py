@@ -1,0 +1,92 @@
+"""Supervised workers: results, cache, crashes, time limits, retention."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import pytest
+
+from projection_server.simulation import Job, ProjectionError
+from projection_server.simulation.pool import Retention
+
+
+def job(make_scenario, force, position=0.0):
+    return Job.checked(make_scenario(), 'grasp_object', {'force': force, 'position': position})
+
+
+def test_a_projection_gives_a_complete_bag_in_the_bag_dir(pool, make_scenario):
+    path = pool.run(job(make_scenario, 5.0), timeout=60.0)
+    assert os.path.dirname(path) == str(pool.bag_dir)
+    assert os.path.isfile(os.path.join(path, 'metadata.yaml'))
+    assert not [p for p in pool.bag_dir.iterdir() if p.name.startswith('.tmp-')]
+
+
+def test_an_identical_projection_comes_from_the_cache(pool, make_scenario):
+    first = pool.run(job(make_scenario, 3.0), timeout=60.0)
+    mtime = os.stat(os.path.join(first, 'metadata.yaml')).st_mtime_ns
+    started = time.monotonic()
+    again = pool.submit(job(make_scenario, 3.0), timeout=60.0)
+    assert again.done() and again.result() == first
+    assert time.monotonic() - started < 0.5
+    assert os.stat(os.path.join(first, 'metadata.yaml')).st_mtime_ns == mtime
+
+
+def test_a_worker_killed_mid_projection_fails_it_and_is_replaced(pool, make_scenario):
+    pool.run(job(make_scenario, 5.0), timeout=60.0)   # a started worker
+    future = pool.submit(job(make_scenario, 4.0), timeout=60.0)
+    deadline = time.monotonic() + 30.0
+    # Mid-projection: the worker has begun writing the bag in its temporary directory.
+    while not any(p.name.startswith('.tmp-') and any(p.iterdir())
+                  for p in pool.bag_dir.iterdir()):
+        assert time.monotonic() < deadline and not future.done()
+        time.sleep(0.005)
+    (pid,) = pool.worker_pids
+    os.kill(pid, signal.SIGKILL)
+    with pytest.raises(ProjectionError) as info:
+        future.result(timeout=30.0)
+    assert info.value.kind == 'worker_crashed'
+    assert os.path.isdir(pool.run(job(make_scenario, 4.0), timeout=60.0))
+    assert pool.worker_pids != [pid]
+
+
+def test_a_projection_over_its_time_limit_is_stopped(pool, make_scenario):
+    pool.run(job(make_scenario, 5.0), timeout=60.0)   # start-up does not count
+    with pytest.raises(ProjectionError) as info:
+        pool.run(job(make_scenario, 6.0), timeout=0.05)
+    assert info.value.kind == 'timeout'
+    assert os.path.isdir(pool.run(job(make_scenario, 6.0), timeout=60.0))
+
+
+def test_worker_errors_come_back_as_projection_errors(pool, make_scenario):
+    scenario = make_scenario()
+    scenario['entities'] = [e for e in scenario['entities'] if e['class'] != 'robot']
+    with pytest.raises(ProjectionError) as info:
+        pool.run(Job.checked(scenario, 'grasp_object', {}), timeout=60.0)
+    assert info.value.kind == 'invalid_scenario'
+
+
+def test_a_bag_does_not_depend_on_earlier_projections_of_its_worker(
+        pool, make_scenario, tmp_path):
+    from projection_server.simulation.runner import run_projection
+
+    pool.run(job(make_scenario, 9.0, 0.02), timeout=60.0)   # leaves a broken egg behind
+    path = pool.run(job(make_scenario, 7.0, -0.02), timeout=60.0)
+    fresh = tmp_path / os.path.basename(path)
+    run_projection(job(make_scenario, 7.0, -0.02), pool.settings, fresh)
+    name = os.path.basename(path) + '.mcap'
+    with open(os.path.join(path, name), 'rb') as a, open(fresh / name, 'rb') as b:
+        assert a.read() == b.read()
+
+
+def test_retention_deletes_the_least_recently_used_bags(tmp_path):
+    for i, name in enumerate(['old', 'mid', 'new']):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / 'metadata.yaml').write_text('x' * 100)
+        os.utime(tmp_path / name, ns=(i * 10**9, i * 10**9))
+    (tmp_path / '.tmp-1-0').mkdir()
+    Retention(max_bags=2, max_bytes=None).apply(tmp_path, keep=tmp_path / 'new')
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['.tmp-1-0', 'mid', 'new']
+    Retention(max_bags=None, max_bytes=150).apply(tmp_path, keep=tmp_path / 'mid')
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['.tmp-1-0', 'mid']

@@ -1,0 +1,40 @@
+"""The entry point for Prolog: simulate() and translate_bag() of docs/contracts.md."""
+
+from __future__ import annotations
+
+import pytest
+
+from projection_server import projection
+from projection_server.simulation import ProjectionError
+from projection_server.timeline.translate import translate_bag
+
+
+@pytest.fixture
+def bag_dir(tmp_path, monkeypatch):
+    """The process-wide pool, writing into a fresh directory; stopped afterwards."""
+    projection.shutdown()
+    monkeypatch.setenv('PROJECTION_SERVER_BAG_DIR', str(tmp_path))
+    yield tmp_path
+    projection.shutdown()
+
+
+def test_simulate_returns_a_bag_that_translates_to_a_timeline(bag_dir, make_scenario):
+    path = projection.simulate(make_scenario(), 'grasp_object',
+                               {'force': 5, 'position': 0.0}, 60.0)
+    assert path.startswith(str(bag_dir))
+    timeline = translate_bag(path)
+    assert ['grasp', ['egg1']] in [e[:2] for e in timeline['events']]
+    assert timeline['meta']['params'] == {'force': 5.0, 'position': 0.0}
+
+
+def test_simulate_rejects_bad_input_before_starting_a_worker(bag_dir, make_scenario):
+    with pytest.raises(ProjectionError) as info:
+        projection.simulate(make_scenario(), 'grasp_object', {'force': -1.0}, 10.0)
+    assert info.value.kind == 'invalid_parameters'
+    assert list(bag_dir.iterdir()) == []
+
+
+def test_translating_something_else_than_a_bag_fails_clearly(tmp_path):
+    with pytest.raises(ProjectionError) as info:
+        translate_bag(tmp_path / 'missing')
+    assert info.value.kind == 'bag_error'
