@@ -21,7 +21,7 @@ from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from std_srvs.srv import Trigger
 
-from projection_server import prolog_bridge
+from projection_server import projection, prolog_bridge
 from projection_server.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryManager,
                                        ServerLimits)
 
@@ -52,8 +52,19 @@ class ProjectionServerNode(Node):
             description='Seconds after which an idle INCREMENTAL query is closed'))
         self.declare_parameter('sandbox', True, ParameterDescriptor(
             description='Refuse goals library(sandbox) cannot prove safe'))
+        self.declare_parameter('bag_dir', '', ParameterDescriptor(
+            description='Where projection bags go (empty: ~/.cache/projection_server/bags)',
+            read_only=True))
+        self.declare_parameter('projection_workers', 1, ParameterDescriptor(
+            description='Simulation worker processes', read_only=True))
+        self.declare_parameter('max_bags', 1000, ParameterDescriptor(
+            description='Bags kept in bag_dir; the oldest are deleted first', read_only=True))
         self.add_on_set_parameters_callback(self._check_parameters)
 
+        projection.configure(
+            bag_dir=self.get_parameter('bag_dir').value or None,
+            workers=int(self.get_parameter('projection_workers').value),
+            retention={'max_bags': int(self.get_parameter('max_bags').value)})
         prolog_bridge.load()
         self.queries = QueryManager(self._limits())
 
@@ -131,6 +142,7 @@ class ProjectionServerNode(Node):
     def destroy_node(self):
         if hasattr(self, 'queries'):
             self.queries.shutdown()
+        projection.shutdown()
         super().destroy_node()
 
 

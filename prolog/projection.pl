@@ -1,0 +1,203 @@
+:- module(projection,
+          [ make_projection/4,          % +Scenario, +Program, +Params, -Timeline
+            make_projection/5,          % +Scenario, +Program, +Params, +Timeout, -Timeline
+            simulate/5,                 % +Scenario, +Program, +Params, +Timeout, -Log
+            translate/2,                % +Log, -Timeline
+            projection_program/2,       % ?Program, -FormalParams:list(dict)
+            projection_default_timeout/1 % -Seconds
+          ]).
+:- autoload(library(apply), [maplist/3, foldl/4]).
+:- autoload(library(error),
+            [ must_be/2, domain_error/2, existence_error/2, type_error/2 ]).
+:- autoload(library(lists), [member/2, numlist/3]).
+:- use_module(library(janus), [py_call/2]).
+:- use_module(scenario, [scenario_description/2]).
+:- use_module(timeline, [timeline_create/2, timeline_exists/1]).
+
+/** <module> Simulation-based temporal projection (the paper's section III-B)
+
+make_projection/4,5 runs a robot control program in a physics simulation of a
+scenario, once for every combination of parameter values, on backtracking,
+and gives the timeline of each run:
+
+```
+?- make_projection(grasping, grasp_object,
+                   [(F, force, [1, 3, 5]), (P, position, [-0.02, 0.0])],
+                   Timeline),
+   \+ occurs(break, _, Timeline),
+   \+ occurs(slip, _, Timeline).
+```
+
+Params is a list of `(Var, Name, Range)`. Range is a list of values or
+`range(Low, High, Step)` (inclusive, numeric). Combinations are enumerated in
+lexicographic order of the list: the first parameter changes slowest, as in
+nested loops. Parameters the list leaves out take the program's default.
+
+make_projection/5 is simulate/5 followed by translate/2. simulate/5 starts a
+supervised PyBullet worker (projection_server.projection), which writes one
+ROS bag per projection; translate/2 reads a bag into a timeline (timeline.pl).
+An identical projection (same scenario description, program, parameters and
+physics settings) reuses the bag and the timeline made before.
+*/
+
+%!  make_projection(+Scenario, +Program, +Params, -Timeline) is nondet.
+%!  make_projection(+Scenario, +Program, +Params, +Timeout, -Timeline) is nondet.
+%
+%   Project Program in Scenario for each instantiation of Params (see the
+%   module doc), binding the parameter variables and Timeline, the id of the
+%   projection's timeline.  Timeout is the wall-clock limit in seconds of one
+%   simulation; make_projection/4 uses projection_default_timeout/1.
+%
+%   @error existence_error(scenario, S), existence_error(program, P),
+%          existence_error(program_parameter, Program:Name)
+%   @error type_error(projection_parameter, E) for a malformed Params element
+%   @error domain_error(parameter_value, Name=Value) for a value out of range
+%   @error projection_error(Kind, Message) when a simulation fails or times out
+
+make_projection(Scenario, Program, Params, Timeline) :-
+    projection_default_timeout(Timeout),
+    make_projection(Scenario, Program, Params, Timeout, Timeline).
+
+make_projection(Scenario, Program, Params, Timeout, Timeline) :-
+    simulate(Scenario, Program, Params, Timeout, Log),
+    translate(Log, Timeline).
+
+%!  simulate(+Scenario, +Program, +Params, +Timeout, -Log) is nondet.
+%
+%   Set up and run one simulation per instantiation of Params; Log is the
+%   path of its bag.  Errors as for make_projection/5.
+
+simulate(Scenario, Program, Params, Timeout, Log) :-
+    must_be(atom, Scenario),
+    must_be(atom, Program),
+    must_be(list, Params),
+    must_be_positive(Timeout),
+    (   projection_program(Program, Formal)
+    ->  true
+    ;   existence_error(program, Program)
+    ),
+    maplist(parse_param(Program, Formal), Params, Choices),
+    check_unique(Choices),
+    scenario_description(Scenario, Description),
+    instantiate(Choices, Pairs),
+    dict_pairs(Values, params, Pairs),
+    run_simulation(Description, Program, Values, Timeout, Log).
+
+parse_param(Program, Formal, Param, choice(Var, Name, Values)) :-
+    (   Param = (Var, Name, Range)
+    ->  true
+    ;   type_error(projection_parameter, Param)
+    ),
+    must_be(atom, Name),
+    (   member(F, Formal), get_dict(name, F, Name0), atom_string(Name, Name0)
+    ->  true
+    ;   existence_error(program_parameter, Program:Name)
+    ),
+    range_values(Range, Values),
+    maplist(check_value(F, Name), Values).
+
+range_values(range(Low, High, Step), Values) :- !,
+    must_be(number, Low), must_be(number, High), must_be_positive(Step),
+    N is floor((High - Low) / Step + 1.0e-9),
+    numlist(0, N, Is),
+    maplist([I, V]>>(V0 is Low + I * Step, V is round(V0 * 1.0e9) / 1.0e9), Is, Values).
+range_values(Values, Values) :-
+    is_list(Values), Values \== [], !.
+range_values(Range, _) :-
+    type_error(parameter_range, Range).
+
+check_value(Formal, Name, Value) :-
+    (   number(Value)
+    ->  true
+    ;   type_error(number, Value)
+    ),
+    get_dict(min, Formal, Min), get_dict(max, Formal, Max),
+    (   Value >= Min, Value =< Max
+    ->  true
+    ;   domain_error(parameter_value, Name=Value)
+    ).
+
+check_unique(Choices) :-
+    findall(N, member(choice(_, N, _), Choices), Names),
+    sort(Names, Unique),
+    length(Names, L), length(Unique, L), !.
+check_unique(Choices) :-
+    domain_error(distinct_parameters, Choices).
+
+must_be_positive(X) :-
+    must_be(number, X),
+    (   X > 0 -> true ; domain_error(positive_number, X) ).
+
+instantiate([], []).
+instantiate([choice(Var, Name, Values)|T], [Name-Var|Pairs]) :-
+    member(Var, Values),
+    instantiate(T, Pairs).
+
+run_simulation(Description, Program, Values, Timeout, Log) :-
+    catch(py_call('projection_server.projection':simulate(Description, Program,
+                                                          Values, Timeout), Log0),
+          error(python_error(Class, Value), _),
+          projection_error(Class, Value)),
+    atom_string(Log, Log0).
+
+projection_error(Class, Value) :-
+    (   catch(py_call(Value:kind, Kind0), _, fail)
+    ->  atom_string(Kind, Kind0)
+    ;   Kind = Class
+    ),
+    (   catch(py_call(str(Value), Message0), _, fail)
+    ->  atom_string(Message, Message0)
+    ;   Message = Class
+    ),
+    throw(error(projection_error(Kind, Message), _)).
+
+%!  translate(+Log, -Timeline) is det.
+%
+%   Timeline is the timeline of the bag Log.  Translating the same bag again
+%   gives the same timeline, as long as it was not removed.
+%
+%   @error existence_error(file, Log) if there is no such bag
+
+:- dynamic log_timeline/2.
+
+translate(Log0, Timeline) :-
+    must_be(text, Log0),
+    atom_string(Log, Log0),
+    (   log_timeline(Log, Timeline0), timeline_exists(Timeline0)
+    ->  Timeline = Timeline0
+    ;   exists_directory(Log)
+    ->  catch(py_call('projection_server.timeline.translate':translate_bag(Log), Data),
+              error(python_error(Class, Value), _),
+              projection_error(Class, Value)),
+        with_mutex(projection_translate,
+                   (   log_timeline(Log, Timeline0), timeline_exists(Timeline0)
+                   ->  Timeline = Timeline0
+                   ;   timeline_create(Data, Timeline),
+                       retractall(log_timeline(Log, _)),
+                       assertz(log_timeline(Log, Timeline))
+                   ))
+    ;   existence_error(file, Log)
+    ).
+
+%!  projection_program(?Program, -FormalParams:list) is nondet.
+%
+%   Program is a registered robot control program; FormalParams are dicts
+%   with its parameters' name, unit, min, max and default.
+
+projection_program(Program, Formal) :-
+    py_call('projection_server.projection':programs(), Programs),
+    member(P, Programs),
+    get_dict(program, P, Name),
+    atom_string(Program, Name),
+    get_dict(params, P, Formal).
+
+%!  projection_default_timeout(-Seconds) is det.
+%
+%   Wall-clock limit of one simulation for make_projection/4.
+
+projection_default_timeout(60).
+
+:- multifile prolog:message//1.
+
+prolog:message(error(projection_error(Kind, Message), _)) -->
+    [ 'Projection failed (~w): ~w'-[Kind, Message] ].
