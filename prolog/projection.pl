@@ -38,6 +38,17 @@ supervised PyBullet worker (projection_server.projection), which writes one
 ROS bag per projection; translate/2 reads a bag into a timeline (timeline.pl).
 An identical projection (same scenario description, program, parameters and
 physics settings) reuses the bag and the timeline made before.
+
+After make_projection/4,5 (or translate/2), the paper's section II form runs
+on that projection's timeline:
+
+```
+?- create_scenario(S), add_to_scenario(S, [kitchen_env, pr2_robot, egg1]),
+   scenario_set_property(S, egg1, mass, 0.1),
+   make_projection(S, grasp_object, [(F, force, [1.5])], _),
+   occurs(Evt, T1), typeOf(Evt, dropping), objOf(Evt, egg1),
+   after(T2, T1), holds(Fl, T2), objOf(Fl, egg1).
+```
 */
 
 %!  make_projection(+Scenario, +Program, +Params, -Timeline) is nondet.
@@ -154,13 +165,22 @@ projection_error(Class, Value) :-
 %!  translate(+Log, -Timeline) is det.
 %
 %   Timeline is the timeline of the bag Log.  Translating the same bag again
-%   gives the same timeline, as long as it was not removed.
+%   gives the same timeline, as long as it was not removed.  Timeline becomes
+%   the query's current timeline: holds/2, occurs/2, typeOf/2 and objOf/2
+%   (the paper's section II form) evaluate on it until the next translation
+%   or a with_timeline/2.
 %
 %   @error existence_error(file, Log) if there is no such bag
 
 :- dynamic log_timeline/2.
 
-translate(Log0, Timeline) :-
+translate(Log, Timeline) :-
+    translate_(Log, Timeline),
+    % The paper's two-argument forms (holds/2, occurs/2) then evaluate on this
+    % timeline for the rest of the query (see timeline:current_timeline/1).
+    b_setval('$timeline_selected', Timeline).
+
+translate_(Log0, Timeline) :-
     must_be(text, Log0),
     atom_string(Log, Log0),
     (   log_timeline(Log, Timeline0), timeline_exists(Timeline0)

@@ -40,8 +40,9 @@ def server(rclpy_context, tmp_path_factory):
     """Start the node; yield its name. Its log is kept in the test's tmp dir."""
     name = 'projection_server'
     log = tmp_path_factory.mktemp('node') / 'node.log'
+    params = {**NODE_PARAMS, 'bag_dir': str(tmp_path_factory.mktemp('bags'))}
     with open(log, 'w') as out:
-        proc = subprocess.Popen(_node_command(name, NODE_PARAMS), stdout=out,
+        proc = subprocess.Popen(_node_command(name, params), stdout=out,
                                 stderr=subprocess.STDOUT, start_new_session=True)
     try:
         _wait_for_service(f'/{name}/query', proc, log)
