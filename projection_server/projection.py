@@ -29,10 +29,12 @@ __all__ = [
     'ProjectionError',
     'configure',
     'default_bag_dir',
+    'prefetch',
     'programs',
     'shutdown',
     'simulate',
     'submit',
+    'workers',
 ]
 
 _lock = threading.Lock()
@@ -93,6 +95,29 @@ def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
     """
     job = Job.checked(scenario, program, params)
     return _get_pool().submit(job, timeout)
+
+
+def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
+             timeout: float) -> int:
+    """Queue projections that a query will probably ask for next; return how many.
+
+    Lets the workers run a query's next parametrizations while Prolog is still
+    evaluating the current one. Invalid ones are skipped here: :func:`simulate`
+    reports their errors when (and if) they are asked for.
+    """
+    queued = 0
+    for params in params_list:
+        try:
+            submit(scenario, program, params, timeout)
+            queued += 1
+        except ProjectionError:
+            pass
+    return queued
+
+
+def workers() -> int:
+    """Number of simulation workers (the useful prefetch depth)."""
+    return int(_config['workers'])
 
 
 def programs() -> list[dict[str, Any]]:

@@ -9,7 +9,7 @@
 :- autoload(library(apply), [maplist/3, foldl/4]).
 :- autoload(library(error),
             [ must_be/2, domain_error/2, existence_error/2, type_error/2 ]).
-:- autoload(library(lists), [member/2, numlist/3]).
+:- autoload(library(lists), [member/2, nth0/3, numlist/3]).
 :- use_module(library(janus), [py_call/2]).
 :- use_module(scenario, [scenario_description/2]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1]).
@@ -32,6 +32,8 @@ Params is a list of `(Var, Name, Range)`. Range is a list of values or
 `range(Low, High, Step)` (inclusive, numeric). Combinations are enumerated in
 lexicographic order of the list: the first parameter changes slowest, as in
 nested loops. Parameters the list leaves out take the program's default.
+While Prolog evaluates one combination, the next ones (as many as there are
+simulation workers) are already being simulated.
 
 make_projection/5 is simulate/5 followed by translate/2. simulate/5 starts a
 supervised PyBullet worker (projection_server.projection), which writes one
@@ -90,9 +92,27 @@ simulate(Scenario, Program, Params, Timeout, Log) :-
     maplist(parse_param(Program, Formal), Params, Choices),
     check_unique(Choices),
     scenario_description(Scenario, Description),
-    instantiate(Choices, Pairs),
-    dict_pairs(Values, params, Pairs),
+    findall(Values, ( instantiate(Choices, Pairs),
+                      dict_pairs(Values, params, Pairs) ), All),
+    py_call('projection_server.projection':workers(), Depth),
+    nth0(I, All, Values),
+    prefetch(Description, Program, All, I, Depth, Timeout),
+    maplist(bind_choice(Values), Choices),
     run_simulation(Description, Program, Values, Timeout, Log).
+
+bind_choice(Values, choice(Var, Name, _)) :-
+    get_dict(Name, Values, Var).
+
+% While the workers simulate parametrization I, the next Depth ones are
+% queued, so a query that backtracks finds them done or under way.
+prefetch(Description, Program, All, I, Depth, Timeout) :-
+    From is I + 1, To is I + Depth,
+    findall(V, ( between(From, To, J), nth0(J, All, V) ), Next),
+    (   Next == []
+    ->  true
+    ;   py_call('projection_server.projection':prefetch(Description, Program, Next,
+                                                        Timeout), _)
+    ).
 
 parse_param(Program, Formal, Param, choice(Var, Name, Values)) :-
     (   Param = (Var, Name, Range)
@@ -140,8 +160,8 @@ must_be_positive(X) :-
     (   X > 0 -> true ; domain_error(positive_number, X) ).
 
 instantiate([], []).
-instantiate([choice(Var, Name, Values)|T], [Name-Var|Pairs]) :-
-    member(Var, Values),
+instantiate([choice(_, Name, Values)|T], [Name-Value|Pairs]) :-
+    member(Value, Values),
     instantiate(T, Pairs).
 
 run_simulation(Description, Program, Values, Timeout, Log) :-
