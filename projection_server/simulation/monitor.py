@@ -1,4 +1,9 @@
-"""Monitoring: turns the state of a :class:`Physics` into bag messages (topics: ``bags``)."""
+"""Monitoring: turns the state of a :class:`Physics` into bag messages (topics: ``bags``).
+
+Particle fluids are not on ``/tf``: each monitoring step writes one ``MarkerArray`` on the
+markers topic with a ``SPHERE_LIST`` marker per fluid (namespace :data:`PARTICLES_NS`, text
+= the fluid's name, points = the particles' world positions).
+"""
 
 from __future__ import annotations
 
@@ -7,14 +12,16 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from projection_server.bags import TOPICS
+from projection_server.simulation.physics import Shape
 
 if TYPE_CHECKING:
     from projection_server.bags import BagWriter
-    from projection_server.simulation.physics import Body, Physics, Shape
+    from projection_server.simulation.physics import Body, Physics
 
-__all__ = ['Monitor', 'WORLD_FRAME']
+__all__ = ['Monitor', 'PARTICLES_NS', 'WORLD_FRAME']
 
 WORLD_FRAME = 'world'
+PARTICLES_NS = 'particles'
 _MSG = 'projection_interfaces/msg/'
 
 
@@ -34,6 +41,7 @@ class Monitor:
         self.bag.write(TOPICS['tf_static'],
                        self.bag.new('tf2_msgs/msg/TFMessage', transforms=static), 0)
         self._markers(0)
+        self._particles(0)
 
     def sample(self) -> None:
         """One monitoring step: poses, contacts, grippers and object states."""
@@ -43,13 +51,14 @@ class Monitor:
             self._markers(t)
         transforms = []
         for body in physics.bodies.values():
-            if body.static:
+            if body.static or body.group is not None:
                 continue
             transforms.append(self._transform(t, body.name, *physics.pose(body.name)))
             for link, link_name in body.links.items():
                 transforms.append(self._transform(t, f'{body.name}/{link_name}',
                                                   *physics.link_pose(body.name, link)))
         bag.write(TOPICS['tf'], bag.new('tf2_msgs/msg/TFMessage', transforms=transforms), t)
+        self._particles(t)
         contacts = [bag.new(
             _MSG + 'Contact', body_a=c.body_a, link_a=c.link_a, body_b=c.body_b,
             link_b=c.link_b, position=self._point(c.position), normal=self._vector(c.normal),
@@ -86,6 +95,21 @@ class Monitor:
         self.bag.write(TOPICS['markers'], self.bag.new(
             'visualization_msgs/msg/MarkerArray', markers=markers), t)
         self.physics.shapes_changed = False
+
+    def _particles(self, t: int) -> None:
+        if not self.physics.fluids:
+            return
+        markers = []
+        for index, fluid in enumerate(self.physics.fluids.values()):
+            points = [self._point(xyz) for xyz in self.physics.particle_positions(fluid.name)]
+            marker = self._marker(t, index, WORLD_FRAME,
+                                  Shape('sphere', (2 * fluid.radius,) * 3, fluid.color),
+                                  (0.0, 0.0, 0.0))
+            marker.ns, marker.type, marker.text = PARTICLES_NS, marker.SPHERE_LIST, fluid.name
+            marker.frame_locked, marker.points = False, points
+            markers.append(marker)
+        self.bag.write(TOPICS['markers'], self.bag.new(
+            'visualization_msgs/msg/MarkerArray', markers=markers), t)
 
     def _marker(self, t: int, index: int, frame: str, shape: Shape, offset: Any) -> Any:
         new = self.bag.new

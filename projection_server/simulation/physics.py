@@ -19,7 +19,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     'Body',
+    'Container',
     'ContactSample',
+    'Fluid',
     'Gripper',
     'ObjectModel',
     'Pad',
@@ -51,6 +53,27 @@ class Body:
     shape: Shape | None
     links: dict[int, str] = field(default_factory=dict)   # link index -> link name
     link_shapes: dict[int, list[tuple[Shape, Vec3]]] = field(default_factory=dict)  # + offset
+    group: str | None = None   # the particle fluid this body is a particle of
+
+
+@dataclass(frozen=True)
+class Container:
+    """The inside of an open container in its body frame: a cylinder of ``radius`` from
+    ``bottom`` (z of the inner floor) up to ``rim`` [m]."""
+
+    radius: float
+    bottom: float
+    rim: float
+
+
+@dataclass
+class Fluid:
+    """A particle fluid: spheres of one ``radius`` [m], contacts reported under its name."""
+
+    name: str
+    radius: float
+    body_ids: list[int]
+    color: tuple[float, float, float, float] = (0.95, 0.9, 0.6, 1.0)
 
 
 @dataclass(frozen=True)
@@ -198,6 +221,8 @@ class Physics:
         self.bodies: dict[str, Body] = {}
         self.grippers: dict[str, Gripper] = {}
         self.models: list[ObjectModel] = []
+        self.fluids: dict[str, Fluid] = {}
+        self.containers: dict[str, Container] = {}
         self.shapes_changed = True   # markers must be (re)logged
         self._names: dict[int, str] = {}
 
@@ -206,9 +231,16 @@ class Physics:
         if body.name in self.bodies:
             raise ProjectionError('invalid_scenario', f'body {body.name!r} exists already')
         self.bodies[body.name] = body
-        self._names[body.body_id] = body.name
+        self._names[body.body_id] = body.group or body.name
         self.shapes_changed = True
         return body
+
+    def add_fluid(self, fluid: Fluid) -> Fluid:
+        """Register a fluid whose particles are bodies added with ``group`` = its name."""
+        if fluid.name in self.bodies or fluid.name in self.fluids:
+            raise ProjectionError('invalid_scenario', f'body {fluid.name!r} exists already')
+        self.fluids[fluid.name] = fluid
+        return fluid
 
     def replace_body(self, name: str, body_id: int, shape: Shape) -> Body:
         """Swap the simulated body of ``name`` (e.g. an egg for its broken remains)."""
@@ -274,6 +306,12 @@ class Physics:
                 return model.load
         raise ProjectionError('invalid_scenario', f'{name!r} has no object model')
 
+    def particle_positions(self, fluid: str) -> np.ndarray:
+        """World positions of a fluid's particles, shape (n, 3) [m]."""
+        get = self.client.getBasePositionAndOrientation
+        ids = self.fluids[fluid].body_ids
+        return np.array([get(i)[0] for i in ids], dtype=float).reshape(len(ids), 3)
+
     def gripper_opening(self, gripper: str) -> float:
         return self.grippers[gripper].opening()
 
@@ -282,7 +320,7 @@ class Physics:
         groups: dict[tuple[str, str, str, str], list[tuple[Any, float]]] = {}
         for point in self.client.getContactPoints():
             a, b = self.name_of(point[1]), self.name_of(point[2])
-            if a is None or b is None:
+            if a is None or b is None or (a == b and a in self.fluids):
                 continue
             key_a = (a, self.link_name(point[1], point[3]))
             key_b = (b, self.link_name(point[2], point[4]))

@@ -8,6 +8,8 @@ Tolerance rules for the knowledge base's dicts:
 * A missing ``pose`` is the identity pose; a missing ``properties`` is empty.
 * Properties not listed in :data:`PROPERTIES` for a class are ignored (e.g. ``shape``, colour).
 * Listed properties with a default may be left out; those without one are required.
+* Older keys of :data:`ALIASES` (``diameter``, ``count``) stand in for the knowledge base's
+  (``radius``, ``particle_count``) when those are missing.
 * Numbers may be ints or floats; every physical quantity must be finite and in its range.
 """
 
@@ -23,6 +25,7 @@ if TYPE_CHECKING:
     from collections.abc import Iterator, Mapping
 
 __all__ = [
+    'ALIASES',
     'CLASSES',
     'Entity',
     'PROPERTIES',
@@ -70,23 +73,25 @@ PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
         'restitution': (0.05, _FRACTION),
         'breaking_force': (None, _POSITIVE),  # None: the shell does not break
     },
+    # An open container: a bottom disc and a wall, ``radius`` and ``height`` outside.
     'cup': {
-        'diameter': (REQUIRED, _POSITIVE),
+        'radius': (REQUIRED, _POSITIVE),
         'height': (REQUIRED, _POSITIVE),
+        'wall_thickness': (0.004, _POSITIVE),
         'mass': (REQUIRED, _NONNEGATIVE),
         'friction': (0.5, _NONNEGATIVE),
         'restitution': (0.1, _FRACTION),
     },
     'pancake_maker': {
-        'diameter': (REQUIRED, _POSITIVE),
+        'radius': (REQUIRED, _POSITIVE),
         'height': (REQUIRED, _POSITIVE),
         'mass': (0.0, _NONNEGATIVE),
         'friction': (0.5, _NONNEGATIVE),
         'restitution': (0.1, _FRACTION),
     },
     'pancake': {
-        'diameter': (REQUIRED, _POSITIVE),
-        'height': (REQUIRED, _POSITIVE),
+        'radius': (REQUIRED, _POSITIVE),
+        'thickness': (REQUIRED, _POSITIVE),
         'mass': (REQUIRED, _POSITIVE),
         'friction': (0.5, _NONNEGATIVE),
         'restitution': (0.0, _FRACTION),
@@ -99,13 +104,26 @@ PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
         'friction': (0.4, _NONNEGATIVE),
         'restitution': (0.1, _FRACTION),
     },
+    # Spheres; with a ``container`` (an entity built before, e.g. the owning cup) they fill
+    # it from its bottom, without one they form a cubic block at the pose.
     'particle_fluid': {
-        'count': (REQUIRED, _POSITIVE),
+        'particle_count': (REQUIRED, _POSITIVE),
         'particle_radius': (REQUIRED, _POSITIVE),
         'particle_mass': (REQUIRED, _POSITIVE),
         'friction': (0.1, _NONNEGATIVE),
         'restitution': (0.0, _FRACTION),
+        'rolling_friction': (0.0, _NONNEGATIVE),
+        'spinning_friction': (0.0, _NONNEGATIVE),
+        'container': (None, 'name'),
     },
+}
+# Older keys still accepted where the knowledge base's key is missing:
+# class -> old key -> (key of the knowledge base, factor).
+ALIASES: dict[str, dict[str, tuple[str, float]]] = {
+    'cup': {'diameter': ('radius', 0.5)},
+    'pancake_maker': {'diameter': ('radius', 0.5)},
+    'pancake': {'diameter': ('radius', 0.5), 'height': ('thickness', 1.0)},
+    'particle_fluid': {'count': ('particle_count', 1.0)},
 }
 CLASSES = frozenset(PROPERTIES)
 
@@ -202,6 +220,10 @@ def _vector(name: str, key: str, value: Any) -> tuple[float, float, float]:
 
 def _properties(name: str, cls: str, given: Mapping[str, Any]) -> dict[str, Any]:
     values: dict[str, Any] = {}
+    given = dict(given)
+    for old, (key, factor) in ALIASES.get(cls, {}).items():
+        if key not in given and old in given:
+            given[key] = given[old] * factor if _is_number(given[old]) else given[old]
     for key, (default, kind) in PROPERTIES[cls].items():
         value = given.get(key, default)
         if value is REQUIRED:

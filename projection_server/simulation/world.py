@@ -14,9 +14,14 @@ How each class becomes bodies (poses are world poses of the object's centre unle
   parked 1 m above the pose; control programs move it. No arm is simulated.
 * ``egg``: a convex ellipsoid, long axis (``length``) along its x, with the
   :class:`~projection_server.simulation.object_models.EggShell` object model.
-* ``cup``, ``pancake_maker``, ``pancake``: upright cylinders (``diameter``, ``height``);
-  ``spatula``: a box; ``particle_fluid``: ``count`` spheres in a cubic block at the pose.
-  Bodies with ``mass`` 0 are static.
+* ``cup``: an open container, a compound of a bottom disc (``wall_thickness`` thick) and
+  :data:`CUP_SEGMENTS` wall boxes on a circle, ``radius`` and ``height`` outside; its inside
+  is registered in :attr:`Physics.containers`.
+* ``pancake_maker``, ``pancake``: flat discs (``radius``; ``height`` or ``thickness``);
+  ``spatula``: a box (blade only). Bodies with ``mass`` 0 are static.
+* ``particle_fluid``: ``particle_count`` spheres, registered as one :class:`Fluid` (contacts
+  are reported under the fluid's name). With a ``container`` they fill its inside from the
+  bottom in hexagonal layers; without one they form a cubic block at the pose.
 """
 
 from __future__ import annotations
@@ -32,7 +37,8 @@ import numpy as np
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.object_models import EggShell
-from projection_server.simulation.physics import Body, Gripper, Pad, Physics, Shape
+from projection_server.simulation.physics import (
+    Body, Container, Fluid, Gripper, Pad, Physics, Shape)
 
 if TYPE_CHECKING:
     from projection_server.simulation.scenario import Entity, Scenario
@@ -44,6 +50,8 @@ PARK_HEIGHT = 1.0   # m above the robot's pose, out of the way until a program m
 EGG_COLOR = (0.95, 0.9, 0.8, 1.0)
 REMAINS_COLOR = (0.95, 0.75, 0.2, 1.0)
 REMAINS_FLATNESS = 0.3   # height of a broken egg's remains relative to its diameter
+CUP_SEGMENTS = 16        # wall boxes of a cup
+PARTICLE_GAP = 1.05      # spacing of spawned particles relative to their diameter
 
 
 def assets_dir() -> Path:
@@ -268,12 +276,48 @@ def _primitive(physics: Physics, entity: Entity, kind: str, size: tuple[float, f
                           Shape(kind if kind == 'box' else 'cylinder', size, color)))
 
 
-def _build_cylinder(physics: Physics, entity: Entity) -> None:
+def _build_disc(physics: Physics, entity: Entity) -> None:
     p = entity.properties
-    colors = {'cup': (0.9, 0.9, 0.95, 1.0), 'pancake_maker': (0.2, 0.2, 0.2, 1.0),
-              'pancake': (0.85, 0.65, 0.3, 1.0)}
-    _primitive(physics, entity, 'cylinder', (p['diameter'], p['diameter'], p['height']),
+    colors = {'pancake_maker': (0.2, 0.2, 0.2, 1.0), 'pancake': (0.85, 0.65, 0.3, 1.0)}
+    thickness = p['height'] if entity.cls == 'pancake_maker' else p['thickness']
+    _primitive(physics, entity, 'cylinder', (2 * p['radius'], 2 * p['radius'], thickness),
                colors[entity.cls])
+
+
+def _build_cup(physics: Physics, entity: Entity) -> None:
+    """An open cup: bottom disc and wall boxes in one compound body, origin at its centre."""
+    c, p = physics.client, entity.properties
+    radius, height, wall = p['radius'], p['height'], p['wall_thickness']
+    if wall >= radius or wall >= height:
+        raise ProjectionError('invalid_scenario',
+                              f'{entity.name}: wall_thickness must be below radius and height')
+    half_angle = math.pi / CUP_SEGMENTS
+    mid = radius - wall / 2
+    types, radii, extents, lengths, positions, orientations = [], [], [], [], [], []
+    types.append(c.GEOM_CYLINDER)
+    radii.append(radius)
+    extents.append([0.0, 0.0, 0.0])
+    lengths.append(wall)
+    positions.append([0.0, 0.0, -height / 2 + wall / 2])
+    orientations.append([0.0, 0.0, 0.0, 1.0])
+    for k in range(CUP_SEGMENTS):
+        phi = 2 * half_angle * k
+        types.append(c.GEOM_BOX)
+        radii.append(0.0)
+        # Tangential half length reaches the outer circle's chord, so the wall has no gaps.
+        extents.append([wall / 2, radius * math.tan(half_angle), height / 2])
+        lengths.append(0.0)
+        positions.append([mid * math.cos(phi), mid * math.sin(phi), 0.0])
+        orientations.append(list(c.getQuaternionFromEuler((0.0, 0.0, phi))))
+    shape = c.createCollisionShapeArray(
+        types, radii=radii, halfExtents=extents, lengths=lengths,
+        collisionFramePositions=positions, collisionFrameOrientations=orientations)
+    body = c.createMultiBody(p['mass'], shape, -1, entity.pose.xyz, _orientation(c, entity))
+    _surface(c, body, p)
+    physics.add_body(Body(entity.name, entity.cls, body, p['mass'] == 0.0,
+                          Shape('cylinder', (2 * radius, 2 * radius, height),
+                                (0.9, 0.9, 0.95, 0.4))))
+    physics.containers[entity.name] = Container(radius - wall, -height / 2 + wall, height / 2)
 
 
 def _build_spatula(physics: Physics, entity: Entity) -> None:
@@ -284,19 +328,64 @@ def _build_spatula(physics: Physics, entity: Entity) -> None:
 
 def _build_particle_fluid(physics: Physics, entity: Entity) -> None:
     c, p = physics.client, entity.properties
-    count, radius = int(p['count']), p['particle_radius']
-    side = math.ceil(count ** (1 / 3))
-    spacing = 2.05 * radius
+    count, radius = int(p['particle_count']), p['particle_radius']
+    container = p.get('container')
+    if container is not None:
+        if container not in physics.containers:
+            raise ProjectionError('invalid_scenario',
+                                  f'{entity.name}: container {container!r} is not built '
+                                  'before it or is not a container')
+        positions = _container_filling(physics, container, count, radius)
+    else:
+        positions = _block(entity.pose.xyz, count, radius)
     shape = c.createCollisionShape(c.GEOM_SPHERE, radius=radius)
-    offset = (side - 1) * spacing / 2
-    for i in range(count):
-        ix, iy, iz = i % side, (i // side) % side, i // (side * side)
-        position = [entity.pose.xyz[k] + (n * spacing - offset) for k, n in
-                    enumerate((ix, iy, iz))]
+    fluid = physics.add_fluid(Fluid(entity.name, radius, []))
+    for i, position in enumerate(positions):
         body = c.createMultiBody(p['particle_mass'], shape, -1, position)
         _surface(c, body, p)
-        physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False,
-                              Shape('sphere', (2 * radius,) * 3, (0.95, 0.9, 0.6, 1.0))))
+        c.changeDynamics(body, -1, rollingFriction=p['rolling_friction'],
+                         spinningFriction=p['spinning_friction'])
+        fluid.body_ids.append(body)
+        physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False, None,
+                              group=entity.name))
+
+
+def _block(centre: Any, count: int, radius: float) -> list[list[float]]:
+    side = math.ceil(count ** (1 / 3))
+    spacing = 2 * PARTICLE_GAP * radius
+    offset = (side - 1) * spacing / 2
+    return [[centre[k] + (n * spacing - offset) for k, n in
+             enumerate((i % side, (i // side) % side, i // (side * side)))]
+            for i in range(count)]
+
+
+def _container_filling(physics: Physics, name: str, count: int,
+                       radius: float) -> list[list[float]]:
+    """World positions of ``count`` particles in hexagonal layers inside a container, from
+    its floor up (layers above the rim if they do not fit)."""
+    inside = physics.containers[name]
+    spacing = 2 * PARTICLE_GAP * radius
+    reach = inside.radius - radius * PARTICLE_GAP
+    layer = []
+    rows = int(reach // (spacing * math.sqrt(3) / 2))
+    for j in range(-rows, rows + 1):
+        y = j * spacing * math.sqrt(3) / 2
+        shift = spacing / 2 if j % 2 else 0.0
+        columns = int(reach // spacing) + 1
+        for i in range(-columns, columns + 1):
+            x = i * spacing + shift
+            if x * x + y * y <= reach * reach:
+                layer.append((x, y))
+    if not layer:
+        raise ProjectionError('invalid_scenario', f'particles do not fit into {name!r}')
+    position, orientation = physics.pose(name)
+    rot = np.asarray(physics.client.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+    out = []
+    for k in range(count):
+        x, y = layer[k % len(layer)]
+        z = inside.bottom + radius * PARTICLE_GAP + (k // len(layer)) * spacing
+        out.append(list(np.asarray(position) + rot @ np.array([x, y, z])))
+    return out
 
 
 _BUILDERS: dict[str, Callable[[Physics, Entity], None]] = {
@@ -305,9 +394,9 @@ _BUILDERS: dict[str, Callable[[Physics, Entity], None]] = {
     'table': _build_table,
     'robot': _build_robot,
     'egg': _build_egg,
-    'cup': _build_cylinder,
-    'pancake_maker': _build_cylinder,
-    'pancake': _build_cylinder,
+    'cup': _build_cup,
+    'pancake_maker': _build_disc,
+    'pancake': _build_disc,
     'spatula': _build_spatula,
     'particle_fluid': _build_particle_fluid,
 }

@@ -28,8 +28,17 @@ Events (``[name, args, start, end]``, points have start = end):
 * ``drop(O)``: O touches nothing for at least ``drop_min_duration`` and falls meanwhile;
   the event spans that time.
 
+* ``spill(F)``: a particle of fluid F first reaches the table (its centre within two
+  particle radii of the table's top, or lower).
+
 Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects,
-``lift_height(O)`` [m] (highest minus initial height) of every moving body.
+``lift_height(O)`` [m] (highest minus initial height) of every moving body. Of particle
+fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
+``particles_on(M)`` per pancake maker M, ``particles_in(C)`` per cup C,
+``particles_spilled(F)`` (neither on a maker nor in a cup) per fluid F, and of the particles
+on M ``centroid_offset_x(M)``, ``centroid_offset_y(M)`` [m] (world axes, relative to M's
+centre; left out without particles) and ``roundness(M)`` (left out below two particles).
+The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 """
 
 from __future__ import annotations
@@ -45,7 +54,10 @@ import numpy as np
 
 from projection_server.bags import read_bag, TOPICS
 from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.monitor import PARTICLES_NS
+from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.settings import TimelineSettings
+from projection_server.timeline import pouring
 from projection_server.timeline.intervals import fluent_intervals, holds_at, Interval
 
 __all__ = ['translate_bag']
@@ -62,6 +74,7 @@ class _Sample:
     contacts: list[Any] = field(default_factory=list)
     grippers: dict[str, Any] = field(default_factory=dict)
     objects: dict[str, Any] = field(default_factory=dict)
+    particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
 
 
 def translate_bag(path: str | os.PathLike[str]) -> dict[str, Any]:
@@ -73,10 +86,11 @@ def translate_bag(path: str | os.PathLike[str]) -> dict[str, Any]:
     info, samples = _read(path)
     settings = TimelineSettings(**json.loads(info.settings_json)['timeline'])
     timeline = _Timeline(samples, settings)
+    fluids = _Fluids(samples, info.scenario_json)
     return {
         'fluents': timeline.fluents(),
-        'events': timeline.events(),
-        'quantities': timeline.quantities(),
+        'events': _sorted_events(timeline.events() + fluids.events()),
+        'quantities': timeline.quantities() + fluids.quantities(),
         'meta': {
             'bag': os.fspath(path), 'scenario': info.scenario_name, 'program': info.program,
             'params': json.loads(info.parameters_json), 'job_key': info.job_key,
@@ -91,14 +105,21 @@ def _read(path: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
     info = None
     by_time: dict[int, _Sample] = {}
     static: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    particles: dict[int, dict[str, np.ndarray]] = {}
     topics = [TOPICS[name] for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
-                                        'objects')]
+                                        'objects', 'markers')]
     for topic, t_ns, msg in read_bag(path, topics):
         if topic == TOPICS['info']:
             info = msg
             continue
         if topic == TOPICS['tf_static']:
             static.update(_poses(msg))
+            continue
+        if topic == TOPICS['markers']:   # only the particles; they make no sample of their own
+            for marker in msg.markers:
+                if marker.ns == PARTICLES_NS:
+                    particles.setdefault(t_ns, {})[marker.text] = np.array(
+                        [(q.x, q.y, q.z) for q in marker.points], dtype=float).reshape(-1, 3)
             continue
         sample = by_time.get(t_ns)
         if sample is None:
@@ -115,11 +136,20 @@ def _read(path: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
             sample.objects = {o.name: o for o in msg.objects}
     if info is None:
         raise ProjectionError('bag_error', f'{path}: no {TOPICS["info"]} message')
+    for t_ns, fluids in particles.items():
+        if t_ns in by_time:
+            by_time[t_ns].particles = fluids
     samples = [by_time[t] for t in sorted(by_time)]
     for sample in samples:
         for name, pose in static.items():
             sample.poses.setdefault(name, pose)
     return info, samples
+
+
+def _sorted_events(events: list[list[Any]]) -> list[list[Any]]:
+    unique = {(e[0], tuple(e[1]), e[2], e[3]) for e in events}
+    return [[n, list(a), s, e] for n, a, s, e in sorted(unique, key=lambda r: (r[2], r[0],
+                                                                              r[1]))]
 
 
 def _poses(msg: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -213,9 +243,7 @@ class _Timeline:
                 elif name == 'broken':
                     events.append(['break', [obj], start, start])
         events.extend(self._drops())
-        unique = {(e[0], tuple(e[1]), e[2], e[3]) for e in events}
-        return [[n, list(a), s, e] for n, a, s, e in sorted(unique, key=lambda r: (r[2], r[0],
-                                                                                  r[1]))]
+        return _sorted_events(events)
 
     def _slip(self, obj: str, start: float, end: float) -> list[list[Any]]:
         reference = None
@@ -308,3 +336,80 @@ class _Timeline:
             position, orientation = sample.poses[obj]
             return rot.T @ (position - origin), rot.T @ orientation
         return None
+
+
+class _Fluids:
+    """Events and quantities of the particle fluids of a projection (none without fluids)."""
+
+    def __init__(self, samples: list[_Sample], scenario_json: str):
+        self.samples = [x for x in samples if x.particles]
+        self.radius: dict[str, float] = {}
+        self.makers: dict[str, pouring.Disc] = {}
+        self.cups: dict[str, Any] = {}
+        tables = []
+        if not self.samples:
+            return
+        scenario = parse_scenario(json.loads(scenario_json))
+        for entity in scenario.entities:
+            p, (x, y, z) = entity.properties, entity.pose.xyz
+            if entity.cls == 'particle_fluid':
+                self.radius[entity.name] = p['particle_radius']
+            elif entity.cls == 'pancake_maker':
+                self.makers[entity.name] = pouring.Disc((x, y), z + p['height'] / 2,
+                                                        p['radius'])
+            elif entity.cls == 'cup':
+                wall = p['wall_thickness']
+                self.cups[entity.name] = (p['radius'] - wall, -p['height'] / 2 + wall,
+                                          p['height'] / 2)
+            elif entity.cls == 'table':
+                tables.append(p.get('height', z))
+        floor = min((d.top for d in self.makers.values()), default=0.0)
+        self.table_top = max(tables, default=floor)
+
+    def _vessels(self, sample: _Sample) -> dict[str, pouring.Vessel]:
+        return {name: pouring.Vessel(*sample.poses[name], *inside)
+                for name, inside in self.cups.items() if name in sample.poses}
+
+    def events(self) -> list[list[Any]]:
+        events = []
+        for fluid, radius in self.radius.items():
+            level = self.table_top + 2 * radius
+            for sample in self.samples:
+                positions = sample.particles.get(fluid)
+                if positions is not None and pouring.reached_level(positions, level).any():
+                    events.append(['spill', [fluid], sample.t, sample.t])
+                    break
+        return events
+
+    def quantities(self) -> list[list[Any]]:
+        if not self.samples:
+            return []
+        last = self.samples[-1]
+        vessels = self._vessels(last)
+        on = {name: [] for name in self.makers}
+        inside = {name: 0 for name in vessels}
+        rows: list[list[Any]] = []
+        for fluid, radius in self.radius.items():
+            positions = last.particles.get(fluid, np.zeros((0, 3)))
+            placed = np.zeros(len(positions), dtype=bool)
+            for name, disc in self.makers.items():
+                mask = pouring.on_disc(positions, disc, radius) & ~placed
+                on[name].append(positions[mask, :2])
+                placed |= mask
+            for name, vessel in vessels.items():
+                mask = pouring.in_vessel(positions, vessel, radius) & ~placed
+                inside[name] += int(mask.sum())
+                placed |= mask
+            rows.append(['particles_spilled', [fluid], int((~placed).sum())])
+        for name, disc in self.makers.items():
+            xy = np.concatenate(on[name]) if on[name] else np.zeros((0, 2))
+            rows.append(['particles_on', [name], len(xy)])
+            offset = pouring.centroid_offset(xy, disc.centre)
+            if offset is not None:
+                rows.append(['centroid_offset_x', [name], offset[0]])
+                rows.append(['centroid_offset_y', [name], offset[1]])
+            round_ = pouring.roundness(xy)
+            if round_ is not None:
+                rows.append(['roundness', [name], round_])
+        rows += [['particles_in', [name], count] for name, count in sorted(inside.items())]
+        return rows

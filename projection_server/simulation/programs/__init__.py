@@ -1,12 +1,13 @@
 """Robot control programs, registered by name with their formal parameters.
 
-A program is added with :func:`register` (see :mod:`.grasp` for the pattern); ``pour`` and
-``turn_pancake`` will follow it. Prolog reads :func:`describe`.
+A program is added with :func:`register` (see :mod:`.grasp` for the pattern; :mod:`.pour`
+follows it, ``turn_pancake`` will). Prolog reads :func:`describe`.
 """
 
 from __future__ import annotations
 
 from projection_server.simulation.programs import grasp  # noqa: F401  (registers itself)
+from projection_server.simulation.programs import pour  # noqa: F401  (registers itself)
 from projection_server.simulation.programs.registry import (
     describe,
     get,

@@ -1,0 +1,98 @@
+"""``pour(angle, time, position)``: pour the pancake mix from the cup onto the pancake maker.
+
+The cup, filled with the particle fluid it contains, is held upright above the pancake maker
+with its pouring lip (the rim on the +x side) over the maker's centre shifted by ``position``
+metres along y. It tilts about the lip (about +y, so its opening turns towards +x) at
+:data:`TILT_RATE` up to ``angle`` (0 = upright, pi/2 = on its side), holds that angle for
+``time`` seconds, tilts back upright at the same rate and the particles settle. The cup is
+moved kinematically: a fixed constraint pulls it to the commanded pose at every control step
+(no arm is simulated). Nothing in the program looks at the outcome.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.programs.registry import Parameter, Program, register
+
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Physics
+    from projection_server.simulation.scenario import Scenario
+
+__all__ = ['PROGRAM', 'Pour']
+
+TILT_RATE = 4.0          # rad/s, tilting and tilting back
+SETTLE = 0.3             # s for the fluid to settle in the upright cup before tilting
+AFTER = 0.8              # s for the poured fluid to settle after the cup is upright again
+CUP_HOLD_FORCE = 500.0   # N, maximal force of the constraint that moves the cup
+
+
+class Pour:
+    """The task: pour the scenario's first cup over its first pancake maker."""
+
+    def __init__(self, physics: Physics, scenario: Scenario, params: dict[str, float],
+                 rng: np.random.Generator):
+        cup = next(scenario.of_class('cup'), None)
+        maker = next(scenario.of_class('pancake_maker'), None)
+        if cup is None or maker is None:
+            raise ProjectionError('invalid_scenario', 'pour needs a cup and a pancake_maker')
+        c = physics.client
+        self.angle, self.hold = params['angle'], params['time']
+        self.tilted = SETTLE + self.angle / TILT_RATE
+        self.released = self.tilted + self.hold
+        self.upright = self.released + self.angle / TILT_RATE
+        self.duration = self.upright + AFTER
+        self._client, self._cup = c, physics.body(cup.name).body_id
+        radius, height = cup.properties['radius'], cup.properties['height']
+        start, _ = physics.pose(cup.name)
+        mx, my, _ = maker.pose.xyz
+        # Keep the cup's height; put its lip over the maker's centre, shifted along y.
+        self._centre = np.array([mx - radius, my + params['position'], start[2]])
+        self._lip = self._centre + np.array([radius, 0.0, height / 2])
+        shift = self._centre - np.asarray(start)
+        for fluid in physics.fluids.values():
+            for body in fluid.body_ids:
+                position, quat = c.getBasePositionAndOrientation(body)
+                c.resetBasePositionAndOrientation(body, np.asarray(position) + shift, quat)
+        upright = c.getQuaternionFromEuler((0.0, 0.0, 0.0))
+        c.resetBasePositionAndOrientation(self._cup, self._centre, upright)
+        self._constraint = c.createConstraint(
+            self._cup, -1, -1, -1, c.JOINT_FIXED, (0, 0, 0), (0, 0, 0), self._centre)
+        c.changeConstraint(self._constraint, self._centre, upright, maxForce=CUP_HOLD_FORCE)
+
+    def tilt(self, t: float) -> float:
+        """Commanded tilt angle [rad] at time ``t`` [s]."""
+        if t <= SETTLE:
+            return 0.0
+        if t <= self.tilted:
+            return (t - SETTLE) * TILT_RATE
+        if t <= self.released:
+            return self.angle
+        return max(self.angle - (t - self.released) * TILT_RATE, 0.0)
+
+    def control(self, physics: Physics) -> None:
+        theta = self.tilt(physics.time)
+        s, co = math.sin(theta), math.cos(theta)
+        rotation = np.array([[co, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, co]])
+        centre = self._lip + rotation @ (self._centre - self._lip)
+        self._client.changeConstraint(
+            self._constraint, centre, self._client.getQuaternionFromEuler((0.0, theta, 0.0)),
+            maxForce=CUP_HOLD_FORCE)
+
+
+PROGRAM = register(Program(
+    name='pour',
+    params=(
+        Parameter('angle', 'rad', 0.0, math.pi, 1.99,
+                  "the cup's tilt from upright at which it is held (paper: 1.84-2.14)"),
+        Parameter('time', 's', 0.0, 3.0, 0.5, 'how long the cup is held at that angle'),
+        Parameter('position', 'm', -0.15, 0.15, 0.0,
+                  "the cup's offset from the pancake maker's centre along y"),
+    ),
+    create=Pour,
+    doc=__doc__.splitlines()[0],
+))
