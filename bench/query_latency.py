@@ -101,8 +101,9 @@ def main() -> int:
                 os.killpg(p.pid, signal.SIGKILL)
 
     print('query latency benchmark')
+    rmw = os.environ.get('RMW_IMPLEMENTATION', 'default (Fast DDS)')
     print(f'  settings: n={args.n} per service (alternating), warmup={args.warmup}, '
-          f'query={args.query!r} in ONCE mode, RMW={os.environ.get("RMW_IMPLEMENTATION", "default (Fast DDS)")}, '
+          f'query={args.query!r} in ONCE mode, RMW={rmw}, '
           f'discovery=LOCALHOST, python {platform.python_version()}, {os.cpu_count()} cores')
     tq, line_q = summary('PrologQuery ONCE round trip', q_times)
     tt, line_t = summary('std_srvs/Trigger round trip', t_times)

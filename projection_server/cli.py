@@ -11,7 +11,7 @@ import sys
 
 import rclpy
 
-from projection_server.bindings import decode_solution, to_prolog_text
+from projection_server.bindings import to_prolog_text
 from projection_server.client import PrologClient, PrologClientError, PrologQueryError
 
 __all__ = ['format_table', 'main']

@@ -128,7 +128,8 @@ class ProjectionServerNode(Node):
         try:
             response.closed = self.queries.finish(request.id)
             response.ok = True
-            response.message = f'closed {response.closed} quer{"y" if response.closed == 1 else "ies"}'
+            n = response.closed
+            response.message = f'closed {n} quer{"y" if n == 1 else "ies"}'
         except QueryError as exc:
             response.ok = False
             response.message = exc.message
