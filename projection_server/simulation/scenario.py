@@ -36,6 +36,7 @@ __all__ = [
 
 REQUIRED = object()
 _POSITIVE, _NONNEGATIVE, _FRACTION, _ANY = 'positive', 'nonnegative', 'fraction', 'any'
+_POINTS, _PAIRS = 'points', 'pairs'   # lists of [x, y, z] / of [parent, child] indices
 
 # class -> property -> (default or REQUIRED, range). Defaults are documented values of the
 # builder, used only when the knowledge base leaves a property out.
@@ -95,6 +96,16 @@ PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
         'mass': (REQUIRED, _POSITIVE),
         'friction': (0.5, _NONNEGATIVE),
         'restitution': (0.0, _FRACTION),
+        # The deformable model (projection_server.simulation.pancake): "rings" (a centre
+        # disc and rings of segments) or "particles" (one segment per given offset).
+        'model': ('rings', 'name'),
+        'joint_stiffness': (0.05, _POSITIVE),   # N m/rad
+        'joint_damping': (0.001, _NONNEGATIVE),   # N m s/rad
+        'joint_radius': (0.015, _POSITIVE),     # m
+        'ring_count': (3, _POSITIVE),
+        'segment_count': (8, _POSITIVE),
+        'particles': (None, _POINTS),
+        'joints': (None, _PAIRS),
     },
     'spatula': {
         'size_x': (REQUIRED, _POSITIVE),
@@ -234,6 +245,15 @@ def _properties(name: str, cls: str, given: Mapping[str, Any]) -> dict[str, Any]
 
 
 def _checked(name: str, key: str, value: Any, kind: str) -> Any:
+    if kind in (_POINTS, _PAIRS):
+        size = 3 if kind == _POINTS else 2
+        if not isinstance(value, (list, tuple)) or not all(
+                isinstance(v, (list, tuple)) and len(v) == size and all(map(_is_number, v))
+                for v in value):
+            _fail(f'{name}: {key} must be a list of lists of {size} numbers')
+        if kind == _PAIRS:
+            return [tuple(int(i) for i in v) for v in value]
+        return [tuple(float(x) for x in v) for v in value]
     if kind == 'name':
         if not isinstance(value, str) or not value:
             _fail(f'{name}: {key} must be a non-empty string')

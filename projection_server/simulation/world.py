@@ -17,8 +17,10 @@ How each class becomes bodies (poses are world poses of the object's centre unle
 * ``cup``: an open container, a compound of a bottom disc (``wall_thickness`` thick) and
   :data:`CUP_SEGMENTS` wall boxes on a circle, ``radius`` and ``height`` outside; its inside
   is registered in :attr:`Physics.containers`.
-* ``pancake_maker``, ``pancake``: flat discs (``radius``; ``height`` or ``thickness``);
-  ``spatula``: a box (blade only). Bodies with ``mass`` 0 are static.
+* ``pancake_maker``: a flat disc (``radius``, ``height``); ``spatula``: a box (blade only).
+  Bodies with ``mass`` 0 are static.
+* ``pancake``: a deformable body of jointed segments
+  (:func:`projection_server.simulation.pancake.build_pancake`).
 * ``particle_fluid``: ``particle_count`` spheres, registered as one :class:`Fluid` (contacts
   are reported under the fluid's name). With a ``container`` they fill its inside from the
   bottom in hexagonal layers; without one they form a cubic block at the pose.
@@ -37,6 +39,7 @@ import numpy as np
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.object_models import EggShell
+from projection_server.simulation.pancake import build_pancake
 from projection_server.simulation.physics import (
     Body, Container, Fluid, Gripper, Pad, Physics, Shape)
 
@@ -278,10 +281,8 @@ def _primitive(physics: Physics, entity: Entity, kind: str, size: tuple[float, f
 
 def _build_disc(physics: Physics, entity: Entity) -> None:
     p = entity.properties
-    colors = {'pancake_maker': (0.2, 0.2, 0.2, 1.0), 'pancake': (0.85, 0.65, 0.3, 1.0)}
-    thickness = p['height'] if entity.cls == 'pancake_maker' else p['thickness']
-    _primitive(physics, entity, 'cylinder', (2 * p['radius'], 2 * p['radius'], thickness),
-               colors[entity.cls])
+    _primitive(physics, entity, 'cylinder', (2 * p['radius'], 2 * p['radius'], p['height']),
+               (0.2, 0.2, 0.2, 1.0))
 
 
 def _build_cup(physics: Physics, entity: Entity) -> None:
@@ -396,7 +397,7 @@ _BUILDERS: dict[str, Callable[[Physics, Entity], None]] = {
     'egg': _build_egg,
     'cup': _build_cup,
     'pancake_maker': _build_disc,
-    'pancake': _build_disc,
+    'pancake': build_pancake,
     'spatula': _build_spatula,
     'particle_fluid': _build_particle_fluid,
 }

@@ -14,6 +14,9 @@ Fluents (arguments are entity names):
 * ``in_gripper(O)``: O touches every finger link of a gripper.
 * ``on(O, S)``: O is supported by S and not in a gripper (it rests on S).
 * ``broken(O)``: O's object model reports it broken.
+* ``upside_down(P)``: the plane fitted to the logged segment frames of deformable body P
+  (``P`` and its links ``P/...``; a pancake) has its upper side's normal pointing down (see
+  :mod:`projection_server.timeline.turning`).
 
 Events (``[name, args, start, end]``, points have start = end):
 
@@ -25,6 +28,7 @@ Events (``[name, args, start, end]``, points have start = end):
   after the grasp; the event spans from the last sample within a fifth of the threshold to
   the sample that crosses it); or it leaves the gripper while the command is not ``open``.
 * ``break(O)``: ``broken(O)`` begins.
+* ``flip(P)``: ``upside_down(P)`` begins.
 * ``drop(O)``: O touches nothing for at least ``drop_min_duration`` and falls meanwhile;
   the event spans that time.
 
@@ -55,9 +59,10 @@ import numpy as np
 from projection_server.bags import read_bag, TOPICS
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.monitor import PARTICLES_NS
+from projection_server.simulation.pancake import REFERENCE_LINKS
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.settings import TimelineSettings
-from projection_server.timeline import pouring
+from projection_server.timeline import pouring, turning
 from projection_server.timeline.intervals import fluent_intervals, holds_at, Interval
 
 __all__ = ['translate_bag']
@@ -160,6 +165,19 @@ def _poses(msg: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return out
 
 
+def _upside_down(sample: _Sample, body: str) -> bool:
+    """Whether the segments of ``body`` (its frame and link frames ``body/...``, with the
+    reference links of :data:`~projection_server.simulation.pancake.REFERENCE_LINKS`) are
+    upside down; False for bodies without them."""
+    a, b = (sample.poses.get(f'{body}/{link}') for link in REFERENCE_LINKS)
+    if a is None or b is None or body not in sample.poses:
+        return False
+    positions = [pose[0] for name, pose in sample.poses.items()
+                 if name == body or name.startswith(body + '/')]
+    normal = turning.upper_normal(np.array(positions), sample.poses[body][0], a[0], b[0])
+    return turning.is_upside_down(normal)
+
+
 def _matrix(q: tuple[float, float, float, float]) -> np.ndarray:
     x, y, z, w = q
     return np.array([
@@ -216,6 +234,9 @@ class _Timeline:
             for name, state in sample.objects.items():
                 if state.broken:
                     self._booleans[('broken', (name,))][i] = True
+            for body in self.bodies:
+                if _upside_down(sample, body):
+                    self._booleans[('upside_down', (body,))][i] = True
 
     def fluents(self) -> list[list[Any]]:
         rows = [[name, list(args), start, end]
@@ -242,6 +263,8 @@ class _Timeline:
                         events.append(['lift', [obj], end, end])
                 elif name == 'broken':
                     events.append(['break', [obj], start, start])
+                elif name == 'upside_down':
+                    events.append(['flip', [obj], start, start])
         events.extend(self._drops())
         return _sorted_events(events)
 

@@ -1,13 +1,14 @@
 """Robot control programs, registered by name with their formal parameters.
 
 A program is added with :func:`register` (see :mod:`.grasp` for the pattern; :mod:`.pour`
-follows it, ``turn_pancake`` will). Prolog reads :func:`describe`.
+follows it, and so does :mod:`.turn`). Prolog reads :func:`describe`.
 """
 
 from __future__ import annotations
 
 from projection_server.simulation.programs import grasp  # noqa: F401  (registers itself)
 from projection_server.simulation.programs import pour  # noqa: F401  (registers itself)
+from projection_server.simulation.programs import turn  # noqa: F401  (registers itself)
 from projection_server.simulation.programs.registry import (
     describe,
     get,

@@ -1,0 +1,136 @@
+"""``turn_pancake(angle)``: turn the pancake on the pancake maker over with the spatula.
+
+The spatula's blade, tilted ``angle`` radians to the horizontal (front edge down), starts
+with its front edge just outside the pancake's rim on the side of the spatula's scenario
+pose (-x of the pancake, the blade pointing +x) and :data:`CLEARANCE` above the maker. It is
+pushed along +x at :data:`PUSH_SPEED` on average (smooth start and stop) until its
+front edge is :data:`REACH` of the pancake's radius past the pancake's centre, then turned
+about its front edge to :data:`CARRY_PITCH` (front edge slightly up) while lifted by
+:data:`LIFT`, then turned half a turn about its own long axis (x) at :data:`FLIP_RATE` and
+held while the pancake falls and settles. The spatula is moved
+kinematically: a fixed constraint pulls it to the commanded pose at every control step (no
+arm is simulated). Nothing in the program looks at the outcome: whether the blade gets
+under the pancake or pushes it away, and whether the pancake lands upside down, is
+physics (the blade's thin edge against the pancake's round rim, the friction of pancake on
+blade and on maker, the pancake's weight and bending).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.programs.registry import Parameter, Program, register
+
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Physics
+    from projection_server.simulation.scenario import Scenario
+
+__all__ = ['PROGRAM', 'TurnPancake']
+
+SETTLE = 0.3             # s for the pancake to settle before the spatula moves
+CLEARANCE = 0.0005       # m between the blade's front edge and the maker's top
+START_GAP = 0.01         # m between the blade's front edge and the pancake's rim at start
+PUSH_SPEED = 0.5       # m/s along +x
+REACH = 0.7              # front edge ends this fraction of the pancake's radius past its centre
+LEVEL_TIME = 0.5         # s to level the blade while lifting it
+LIFT = 0.08              # m
+FLIP_RATE = 10.0         # rad/s about the blade's long axis
+AFTER = 1.0              # s for the pancake to fall and settle
+CARRY_PITCH = -0.15      # rad: the blade's front edge up while lifting, to hold the pancake
+HOLD_FORCE = 500.0       # N, maximal force of the constraint that moves the spatula
+
+
+def _ry(theta: float) -> np.ndarray:
+    s, c = math.sin(theta), math.cos(theta)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rx(theta: float) -> np.ndarray:
+    s, c = math.sin(theta), math.cos(theta)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+class TurnPancake:
+    """The task: turn the scenario's first pancake with its first spatula."""
+
+    def __init__(self, physics: Physics, scenario: Scenario, params: dict[str, float],
+                 rng: np.random.Generator):
+        spatula = next(scenario.of_class('spatula'), None)
+        pancake = next(scenario.of_class('pancake'), None)
+        maker = next(scenario.of_class('pancake_maker'), None)
+        if spatula is None or pancake is None or maker is None:
+            raise ProjectionError('invalid_scenario',
+                                  'turn_pancake needs a spatula, a pancake and a pancake_maker')
+        c = physics.client
+        self._client, self._spatula = c, physics.body(spatula.name).body_id
+        self.angle = params['angle']
+        p = spatula.properties
+        # The front edge's bottom, in the blade's frame.
+        self._edge = np.array([p['size_x'] / 2, 0.0, -p['size_z'] / 2])
+        px, py, _ = pancake.pose.xyz
+        radius = pancake.properties['radius']
+        top = maker.pose.xyz[2] + maker.properties['height'] / 2
+        self._start = np.array([px - radius - START_GAP, py, top + CLEARANCE])
+        self._end = np.array([px + REACH * radius, py, top + CLEARANCE])
+        self.pushed = SETTLE + (self._end[0] - self._start[0]) / PUSH_SPEED
+        self.levelled = self.pushed + LEVEL_TIME
+        self.flipped = self.levelled + math.pi / FLIP_RATE
+        self.duration = self.flipped + AFTER
+        centre, quat = self.pose(0.0)
+        c.resetBasePositionAndOrientation(self._spatula, centre, quat)
+        self._constraint = c.createConstraint(
+            self._spatula, -1, -1, -1, c.JOINT_FIXED, (0, 0, 0), (0, 0, 0), centre)
+        c.changeConstraint(self._constraint, centre, quat, maxForce=HOLD_FORCE)
+
+    def pose(self, t: float) -> tuple[np.ndarray, tuple[float, ...]]:
+        """Commanded position of the blade's centre and orientation at time ``t`` [s]."""
+        if t <= self.pushed:
+            s = min(max((t - SETTLE) / (self.pushed - SETTLE), 0.0), 1.0)
+            s = (1.0 - math.cos(math.pi * s)) / 2   # smooth start and stop
+            edge = self._start + s * (self._end - self._start)
+            rotation = _ry(self.angle)
+        elif t <= self.levelled:
+            s = (t - self.pushed) / LEVEL_TIME
+            edge = self._end + np.array([0.0, 0.0, s * LIFT])
+            rotation = _ry(self.angle + s * (CARRY_PITCH - self.angle))
+        else:
+            edge = self._end + np.array([0.0, 0.0, LIFT])
+            roll = min((t - self.levelled) * FLIP_RATE, math.pi)
+            # Turn about the blade's long axis through its centre (the level blade's centre
+            # is at the front edge's height plus half its thickness, half its length back).
+            axis = edge - np.array([self._edge[0], 0.0, self._edge[2]])
+            rotation = _rx(roll) @ _ry(CARRY_PITCH)
+            return axis, _quaternion(rotation)
+        return edge - rotation @ self._edge, _quaternion(rotation)
+
+    def control(self, physics: Physics) -> None:
+        centre, quat = self.pose(physics.time)
+        self._client.changeConstraint(self._constraint, centre, quat, maxForce=HOLD_FORCE)
+
+
+def _quaternion(m: np.ndarray) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of a rotation matrix."""
+    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2,
+                      m[2, 1] - m[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2,
+                      m[0, 2] - m[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2,
+                      m[1, 0] - m[0, 1])
+    return (x, y, z, w)
+
+
+PROGRAM = register(Program(
+    name='turn_pancake',
+    params=(
+        Parameter('angle', 'rad', 0.0, 1.2, 0.3,
+                  "the spatula blade's tilt to the horizontal while it is pushed under the "
+                  'pancake (paper: 0.1-0.9)'),
+    ),
+    create=TurnPancake,
+    doc=__doc__.splitlines()[0],
+))
