@@ -3,7 +3,8 @@
 #   make test                        run the whole test suite
 #   make query Q='member(X, [a])'    send a query to a running node
 #   make bench                       run the benchmarks in bench/
-.PHONY: setup run test query bench
+#   make reproduce                   the paper's three experiments, tables and report/
+.PHONY: setup run test query bench reproduce
 SHELL := /bin/bash
 
 setup:
@@ -21,3 +22,6 @@ query: setup
 
 bench: setup
 	@tools/with_env.sh python bench/query_latency.py $(ARGS)
+
+reproduce: setup
+	@tools/with_env.sh projection_reproduce --out reports $(ARGS)

@@ -38,6 +38,7 @@ setup(
         'console_scripts': [
             'projection_server = projection_server.node:main',
             'prolog_query = projection_server.cli:main',
+            'projection_reproduce = projection_server.reproduce.__main__:main',
         ],
     },
 )

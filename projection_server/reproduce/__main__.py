@@ -1,0 +1,119 @@
+"""``python -m projection_server.reproduce [--out DIR] [--quick] [--server NAME]``.
+
+Runs the paper's experiments through the query service at ``--server``; if no node answers
+there, starts one (bags in ``DIR/bags``) and stops it at the end. Prints each table beside
+the paper's and writes ``DIR/report.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from typing import Iterator, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+__all__ = ['main', 'ReproduceError']
+
+NODE_STARTUP_TIMEOUT = 60.0
+
+
+class ReproduceError(Exception):
+    """The reproduction could not be set up (no node, no projection_server command)."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog='python -m projection_server.reproduce',
+        description="Reproduce the paper's experiments (section IV) through the live service "
+                    'and write a report.')
+    parser.add_argument('--out', type=Path, default=Path('reproduction'),
+                        help='directory for report.md, PNG files and (own node) bags')
+    parser.add_argument('--quick', action='store_true',
+                        help='a reduced grid (e.g. forces 1, 5, 11 x positions 0.0, 0.02)')
+    parser.add_argument('--server', default='/projection_server',
+                        help='the node whose services to use (default: %(default)s)')
+    parser.add_argument('--only', action='append', metavar='TABLE',
+                        help='run only these experiments (table1, table2, table3)')
+    parser.add_argument('--timeout', type=float, default=900.0,
+                        help='seconds one solution (projection) may take')
+    parser.add_argument('--no-frames', action='store_true', help='skip rendering key frames')
+    args = parser.parse_args(argv)
+
+    import rclpy
+
+    from projection_server.client import PrologClient, PrologClientError
+    from projection_server.reproduce.experiments import EXPERIMENTS
+    from projection_server.reproduce.run import reproduce
+
+    experiments = [e for e in EXPERIMENTS if not args.only or e.key in args.only]
+    args.out.mkdir(parents=True, exist_ok=True)
+    rclpy.init()
+    try:
+        with PrologClient(args.server) as client, \
+                _server(client, args.server, args.out / 'bags', args.timeout):
+            reproduce(client, args.out, quick=args.quick, experiments=experiments,
+                      timeout=args.timeout, frames=not args.no_frames, say=_say)
+    except (ReproduceError, PrologClientError) as exc:
+        print(f'reproduce: {exc}', file=sys.stderr)
+        return 1
+    finally:
+        rclpy.try_shutdown()
+    return 0
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)
+
+
+@contextlib.contextmanager
+def _server(client, server: str, bag_dir: Path, timeout: float) -> Iterator[None]:
+    """Use the node at ``server`` if it answers, else run our own for the block's duration."""
+    if client.wait_for_server(3.0):
+        _say(f'using the running node {server}')
+        yield
+        return
+    command = shutil.which('projection_server')
+    if command is None:
+        message = (f'no node answers at {server} and there is no projection_server command '
+                   'to start one (run inside tools/with_env.sh)')
+        raise ReproduceError(message)
+    namespace, _, name = server.rstrip('/').rpartition('/')
+    bag_dir.mkdir(parents=True, exist_ok=True)
+    log_path = bag_dir.parent / 'node.log'
+    cmd = [command, '--ros-args', '-r', f'__node:={name}',
+           '-p', f'bag_dir:={bag_dir}', '-p', 'projection_workers:=2',
+           '-p', f'default_timeout:={timeout}']
+    if namespace:
+        cmd[2:2] = ['-r', f'__ns:={namespace}']
+    _say(f'starting a node at {server} (log: {log_path})')
+    with open(log_path, 'w') as log:
+        proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+    try:
+        deadline = time.monotonic() + NODE_STARTUP_TIMEOUT
+        while not client.wait_for_server(0.5):
+            if proc.poll() is not None or time.monotonic() > deadline:
+                message = f'the node did not come up:\n{log_path.read_text()[-2000:]}'
+                raise ReproduceError(message)
+        yield
+    finally:
+        client.finish_all() if proc.poll() is None else None
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+if __name__ == '__main__':
+    sys.exit(main())
