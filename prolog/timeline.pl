@@ -366,16 +366,31 @@ inside(starts).
 inside(during).
 inside(finishes).
 
-% matches(?Pattern, +Term): an atom matches every term of that name.
+% matches(?Pattern, +Term): an atom matches every term of that name, or of
+% the name it is an alias of (name_alias/2).
 matches(P, Term) :-
     (   atom(P)
     ->  (   P == Term
         ->  true
         ;   compound(Term),
-            compound_name_arity(Term, P, _)
+            compound_name_arity(Term, Name, _),
+            (   Name == P
+            ->  true
+            ;   name_alias(P, Name)
+            )
         )
     ;   P = Term
     ).
+
+%!  name_alias(?Alias, ?Name) is nondet.
+%
+%   Alias, used as an atom pattern, matches fluents, events and quantities
+%   named Name.  The paper writes `holds(upsidedown, _, Timeline)` for the
+%   fluent upside_down(Pancake).  Multifile: add spellings here.
+
+:- multifile name_alias/2.
+
+name_alias(upsidedown, upside_down).
 
 must_be_pattern(P) :-
     (   var(P) -> true

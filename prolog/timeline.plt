@@ -240,4 +240,9 @@ message_to_codes(E, Codes) :-
     '$messages':translate_message(E, Lines, []),
     with_output_to(codes(Codes), print_message_lines(current_output, '', Lines)).
 
+test(paper_spelling_upsidedown, T == interval(1.0, 2.0)) :-
+    timeline_create(_{fluents: [[upside_down, [pancake1], 1.0, 2.0]], events: []}, TL),
+    holds(upsidedown, T, TL),
+    timeline_remove(TL).
+
 :- end_tests(timeline).
