@@ -62,7 +62,7 @@ TURNING = {'name': 'turning',
                          'parts': [],
                          'properties': {'shape': 'disc',
                                         'mass': 0.06,
-                                        'friction': 0.3,
+                                        'friction': 0.7,
                                         'restitution': 0.0,
                                         'thickness': 0.008,
                                         'joint_stiffness': 0.05,
@@ -78,7 +78,7 @@ TURNING = {'name': 'turning',
                          'parts': [],
                          'properties': {'shape': 'cylinder',
                                         'mass': 0.0,
-                                        'friction': 0.3,
+                                        'friction': 0.7,
                                         'restitution': 0.05,
                                         'height': 0.03,
                                         'radius': 0.15},
@@ -88,7 +88,7 @@ TURNING = {'name': 'turning',
                          'parts': [],
                          'properties': {'shape': 'box',
                                         'mass': 0.08,
-                                        'friction': 0.2,
+                                        'friction': 0.3,
                                         'restitution': 0.05,
                                         'size_x': 0.1,
                                         'size_y': 0.08,
@@ -194,3 +194,11 @@ def test_a_steep_spatula_does_not_turn_the_pancake(pool):
                                       timeout=120.0))
     assert _fluent(timeline, 'upside_down') == []
     assert not [e for e in timeline['events'] if e[0] == 'flip']
+
+
+def test_a_flat_spatula_turns_the_pancake(pool):
+    timeline = translate_bag(pool.run(Job.checked(TURNING, 'turn_pancake', {'angle': 0.1}),
+                                      timeout=120.0))
+    (interval,) = _fluent(timeline, 'upside_down')   # from the landing to the end
+    assert interval[3] == timeline['meta']['duration']
+    assert len([e for e in timeline['events'] if e[0] == 'flip']) == 1
