@@ -1,12 +1,15 @@
 """``pour(angle, time, position)``: pour the pancake mix from the cup onto the pancake maker.
 
 The cup, filled with the particle fluid it contains, is held upright above the pancake maker
-with its pouring lip (the rim on the +x side) over the maker's centre shifted by ``position``
-metres along y. It tilts about the lip (about +y, so its opening turns towards +x) at
-:data:`TILT_RATE` up to ``angle`` (0 = upright, pi/2 = on its side), holds that angle for
-``time`` seconds, tilts back upright at the same rate and the particles settle. The cup is
-moved kinematically: a fixed constraint pulls it to the commanded pose at every control step
-(no arm is simulated). Nothing in the program looks at the outcome.
+at the height of its pose in the scenario, with its pouring lip (the rim on the +x side) over
+the maker's centre shifted by ``position`` metres along y. It tilts about the lip (about +y,
+so its opening turns towards +x) at :data:`TILT_RATE` up to ``angle`` (0 = upright, pi/2 = on
+its side), holds that angle for ``time`` seconds, tilts back upright at the same rate and the
+particles settle. While it tilts, the lip is lowered as far as the cup's lowest point keeps its
+initial clearance above the maker, but not below :data:`POUR_HEIGHT` (a person pours batter
+from a few centimetres above the pan). The cup is moved kinematically: a fixed constraint
+pulls it to the commanded pose at every control step (no arm is simulated). Nothing in the
+program looks at the outcome.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ __all__ = ['PROGRAM', 'Pour']
 TILT_RATE = 4.0          # rad/s, tilting and tilting back
 SETTLE = 0.3             # s for the fluid to settle in the upright cup before tilting
 AFTER = 0.8              # s for the poured fluid to settle after the cup is upright again
+POUR_HEIGHT = 0.03       # m, lowest height of the lip above the maker's top while pouring
 CUP_HOLD_FORCE = 500.0   # N, maximal force of the constraint that moves the cup
 
 
@@ -49,10 +53,15 @@ class Pour:
         self._client, self._cup = c, physics.body(cup.name).body_id
         radius, height = cup.properties['radius'], cup.properties['height']
         start, _ = physics.pose(cup.name)
-        mx, my, _ = maker.pose.xyz
+        mx, my, mz = maker.pose.xyz
+        self._top = mz + maker.properties['height'] / 2
         # Keep the cup's height; put its lip over the maker's centre, shifted along y.
         self._centre = np.array([mx - radius, my + params['position'], start[2]])
         self._lip = self._centre + np.array([radius, 0.0, height / 2])
+        self._clearance = start[2] - height / 2 - self._top   # of the upright cup's bottom
+        # The rim and bottom of the cup in the plane of tilting, relative to the lip.
+        self._corners = np.array([[0.0, 0.0], [-2 * radius, 0.0], [0.0, -height],
+                                  [-2 * radius, -height]])   # (x, z)
         shift = self._centre - np.asarray(start)
         for fluid in physics.fluids.values():
             for body in fluid.body_ids:
@@ -74,11 +83,20 @@ class Pour:
             return self.angle
         return max(self.angle - (t - self.released) * TILT_RATE, 0.0)
 
+    def lip_height(self, theta: float) -> float:
+        """Height [m] of the lip above the maker's top at tilt ``theta``: the cup's lowest
+        point keeps the upright cup's clearance, the lip stays at least at POUR_HEIGHT."""
+        s, co = math.sin(theta), math.cos(theta)
+        lowest = float(np.min(-s * self._corners[:, 0] + co * self._corners[:, 1]))
+        return max(POUR_HEIGHT, self._clearance - lowest)
+
     def control(self, physics: Physics) -> None:
         theta = self.tilt(physics.time)
         s, co = math.sin(theta), math.cos(theta)
         rotation = np.array([[co, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, co]])
-        centre = self._lip + rotation @ (self._centre - self._lip)
+        lip = self._lip.copy()
+        lip[2] = self._top + min(self.lip_height(theta), self._lip[2] - self._top)
+        centre = lip + rotation @ (self._centre - self._lip)
         self._client.changeConstraint(
             self._constraint, centre, self._client.getQuaternionFromEuler((0.0, theta, 0.0)),
             maxForce=CUP_HOLD_FORCE)
