@@ -39,7 +39,10 @@ Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects,
 ``lift_height(O)`` [m] (highest minus initial height) of every moving body. Of particle
 fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
 ``particles_on(M)`` per pancake maker M, ``particles_in(C)`` per cup C,
-``particles_spilled(F)`` (neither on a maker nor in a cup) per fluid F, and of the particles
+``particles_spilled(F)`` (neither in a cup nor on a maker) per fluid F,
+``particles_on_positions(M)``, the world positions ``[X, Y, Z]`` [m] of the particles on M
+(what ``object_model(pancake, _{particles: Points}, E)`` builds a pancake from), and of the
+particles
 on M ``centroid_offset_x(M)``, ``centroid_offset_y(M)`` [m] (world axes, relative to M's
 centre; left out without particles) and ``roundness(M)`` (left out below two particles).
 The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
@@ -415,18 +418,23 @@ class _Fluids:
         for fluid, radius in self.radius.items():
             positions = last.particles.get(fluid, np.zeros((0, 3)))
             placed = np.zeros(len(positions), dtype=bool)
-            for name, disc in self.makers.items():
-                mask = pouring.on_disc(positions, disc, radius) & ~placed
-                on[name].append(positions[mask, :2])
-                placed |= mask
+            # Vessels first: the bottom of a cup held low over a maker is within the pile
+            # height above it, and what is in the cup is not on the maker.
             for name, vessel in vessels.items():
                 mask = pouring.in_vessel(positions, vessel, radius) & ~placed
                 inside[name] += int(mask.sum())
                 placed |= mask
+            for name, disc in self.makers.items():
+                mask = pouring.on_disc(positions, disc, radius) & ~placed
+                on[name].append(positions[mask])
+                placed |= mask
             rows.append(['particles_spilled', [fluid], int((~placed).sum())])
         for name, disc in self.makers.items():
-            xy = np.concatenate(on[name]) if on[name] else np.zeros((0, 2))
+            points = np.concatenate(on[name]) if on[name] else np.zeros((0, 3))
+            xy = points[:, :2]
             rows.append(['particles_on', [name], len(xy)])
+            rows.append(['particles_on_positions', [name],
+                         [[float(v) for v in point] for point in points]])
             offset = pouring.centroid_offset(xy, disc.centre)
             if offset is not None:
                 rows.append(['centroid_offset_x', [name], offset[0]])

@@ -169,3 +169,19 @@ def test_a_centred_pour_spills_little_and_less_than_an_off_centre_one(pour):
     assert centre <= COUNT // 20
     assert spilled(pour(2.14, 1.0, -0.09)) > centre
     assert spilled(pour(2.14, 1.0, 0.07)) >= centre
+
+
+def test_the_positions_of_the_particles_on_the_maker_are_in_the_timeline(pour):
+    # World [x, y, z] of each particle on the maker: what the object factory builds a
+    # pancake from (object_model(pancake, _{particles: Points}, E)).
+    timeline = pour(2.14, 1.0, 0.0)
+    points = np.asarray(measure(timeline, 'particles_on_positions', 'pancake_maker1'))
+    assert points.shape == (on_maker(timeline), 3)
+    maker = POURING['entities'][2]
+    (x, y, z), p = maker['pose']['xyz'], maker['properties']
+    assert np.all(np.hypot(points[:, 0] - x, points[:, 1] - y) <= p['radius'] + 0.006)
+    assert np.all(points[:, 2] >= z + p['height'] / 2)
+    offset = points[:, :2].mean(axis=0) - (x, y)
+    assert offset.tolist() == pytest.approx(
+        [measure(timeline, 'centroid_offset_x', 'pancake_maker1'),
+         measure(timeline, 'centroid_offset_y', 'pancake_maker1')])

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 
 __all__ = ['PROGRAM', 'Pour']
 
-TILT_RATE = 4.0          # rad/s, tilting and tilting back
+TILT_RATE = 2.0          # rad/s, tilting and tilting back (about 1 s to 2 rad, like a person)
 SETTLE = 0.3             # s for the fluid to settle in the upright cup before tilting
 AFTER = 0.8              # s for the poured fluid to settle after the cup is upright again
 POUR_HEIGHT = 0.03       # m, lowest height of the lip above the maker's top while pouring
