@@ -89,3 +89,86 @@ def test_the_paper_queries_are_the_papers(quick_table_i):
         'make_projection(grasping, grasp_object, [(P1, force, [1, 3, 5, 7, 9, 11]), '
         '(P2, position, [-0.02, 0.0, 0.02])], TL),\n'
         '( occurs(break,_,TL) -> O = break ; occurs(slip,_,TL) -> O = slip ; O = ok )')
+
+
+# -- why the tables differ: explain() on results built from data (no server) ---------------
+
+def _result(experiment, values):
+    """A Result whose runs have ``values`` (key -> value), in grid order."""
+    from projection_server.reproduce.experiments import Result, Run
+    runs = [Run(key, values[key], bag='', duration=0.0, events=[], elapsed=0.0)
+            for key in experiment.grid() if key in values]
+    return Result(experiment, quick=False, runs=runs)
+
+
+def test_why_table_i_names_the_papers_outlier_and_our_monotonic_outcomes():
+    from projection_server.reproduce import paper
+    from projection_server.reproduce.experiments import TABLE_I_GRASPING
+    from projection_server.reproduce.explain import explain
+    ours = {(f, pos): 'slip' if f == 1 else 'break' if f == 11 else 'ok'
+            for f in paper.GRASP_FORCES for pos in paper.GRASP_POSITIONS}
+    why = explain(_result(TABLE_I_GRASPING, ours))
+    assert ("the paper's slip at (-0.02, f5) is an isolated outlier between two ok cells"
+            in why)
+    assert "our outcomes are monotonic in force (slip → ok → break) in every row" in why
+    assert ('in every row because slip and break follow friction and contact load, '
+            "the paper's are not") in why
+    assert "the paper's ok at" not in why    # f3 agrees with ours: not the outlier
+    assert 'position 0.02: paper slip→ok between f1 and f3, ok→break between f7 and f9; ' \
+           'ours slip→ok between f1 and f3, ok→break between f9 and f11' in why
+    assert 'position 0.00' not in why        # that row's change points agree
+    agreeing = explain(_result(TABLE_I_GRASPING, {
+        (1, 0.0): 'slip', (5, 0.0): 'ok', (1, 0.02): 'slip', (5, 0.02): 'ok'}))
+    assert agreeing.endswith('the change points agree: position 0.00: slip→ok between f1 '
+                             'and f5; position 0.02: slip→ok between f1 and f5')
+
+
+def test_why_table_i_says_when_ours_are_not_monotonic():
+    from projection_server.reproduce.experiments import TABLE_I_GRASPING
+    from projection_server.reproduce.explain import explain
+    why = explain(_result(TABLE_I_GRASPING, {(1, 0.0): 'ok', (3, 0.0): 'slip'}))
+    assert 'our outcomes are not monotonic in force' in why
+
+
+def test_why_table_iii_gives_the_change_point_of_both():
+    from projection_server.reproduce.experiments import TABLE_III_TURNING
+    from projection_server.reproduce.explain import explain
+    ours = {(0.1,): 'ok', (0.3,): 'ok', (0.4,): 'fail', (0.5,): 'fail', (0.7,): 'fail',
+            (0.9,): 'fail'}
+    why = explain(_result(TABLE_III_TURNING, ours))
+    assert 'change points: paper ok→fail between 0.4 and 0.5; ' \
+           'ours ok→fail between 0.3 and 0.4' in why
+    same = explain(_result(TABLE_III_TURNING, {(0.4,): 'ok', (0.5,): 'fail'}))
+    assert 'the change points agree: ok→fail between 0.4 and 0.5' in same
+    assert why.startswith('our outcomes are monotonic in angle (ok → fail); ')
+
+
+def test_why_table_ii_is_computed_from_the_numbers():
+    from projection_server.reproduce import paper
+    from projection_server.reproduce.experiments import TABLE_II_POURING
+    from projection_server.reproduce.explain import explain
+    # ours: the paper's pan counts, but more at the lowest angle and capped at 150
+    ours = {}
+    for key, row in paper.TABLE_II.items():
+        pan = min(150, row['pan'] + (80 if key[2] == 1.84 else 0))
+        ours[key] = {**row, 'pan': pan}
+    why = explain(_result(TABLE_II_POURING, ours))
+    assert why.startswith('pan: ')
+    assert ('ours peak at 150 (paper up to 287), capped by the particles poured: '
+            'pan+spill never exceeds 178') in why
+    assert 'both rise with angle (ours flatter' in why and 'at angle 1.84 ours more' in why
+    assert 'spill:' not in why and 'round:' not in why  # identical columns: nothing to say
+    # the same numbers as the paper: nothing differs
+    same = explain(_result(TABLE_II_POURING, dict(paper.TABLE_II)))
+    assert same == 'no measure differs beyond its tolerance'
+
+
+def test_the_printed_table_and_the_report_carry_the_why_line(tmp_path):
+    from projection_server.reproduce import paper
+    from projection_server.reproduce.experiments import TABLE_III_TURNING
+    from projection_server.reproduce.explain import explain
+    from projection_server.reproduce.report import format_table, write_report
+    result = _result(TABLE_III_TURNING, dict(paper.TABLE_III))
+    assert format_table(result).splitlines()[-1] == f'why: {explain(result)}'
+    text = write_report([result], tmp_path, frames=False).read_text()
+    assert f'Why: {explain(result)}.' in text

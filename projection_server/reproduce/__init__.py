@@ -7,7 +7,8 @@ writes ``DIR/report.md`` with coloured grids and key frames rendered from the ba
 
 Modules: :mod:`.paper` (the paper's tables as data), :mod:`.experiments` (the experiments
 and running them), :mod:`.run` (a whole reproduction),
-:mod:`.report` (text and Markdown tables, grids), :mod:`.render` (frames
+:mod:`.report` (text and Markdown tables, grids), :mod:`.explain` (why ours and
+the paper's cells differ), :mod:`.render` (frames
 from bags).
 """
 

@@ -12,6 +12,7 @@ import re
 from typing import Any, TYPE_CHECKING
 
 from projection_server.reproduce.experiments import compare
+from projection_server.reproduce.explain import explain
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -26,7 +27,7 @@ MISSING_COLOR = '#d0d0d0'
 
 def format_table(result: Result) -> str:
     """The experiment's table in the paper's layout, each cell ``paper/ours`` (``*``: differs),
-    followed by the agreement line."""
+    followed by the agreement line and the line on why the cells differ."""
     exp = result.experiment
     if result.skipped:
         return f'{exp.title}: skipped: {result.skipped}'
@@ -36,6 +37,7 @@ def format_table(result: Result) -> str:
     if result.error:
         lines.append(f'stopped early: {result.error}')
     lines.append(compare(result).summary())
+    lines.append(f'why: {explain(result)}')
     return '\n'.join(lines)
 
 
@@ -127,7 +129,8 @@ def write_report(results: Sequence[Result], out: str | Path, *, frames: bool = T
         md += ['```', exp.query(result.quick), '```', '',
                f'{len(result.runs)} projections in {result.elapsed:.1f} s'
                + (' (quick grid)' if result.quick else '') + '. '
-               + f'**{compare(result).summary()}**', '']
+               + f'**{compare(result).summary()}**', '',
+               f'Why: {explain(result)}.', '']
         if result.error:
             md += [f'Stopped early: `{result.error}`', '']
         if exp.qualitative and result.runs:
