@@ -10,22 +10,13 @@ PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
 
 
 @pytest.fixture(scope='module')
-def prolog(server):
-    from projection_server.client import PrologClient
-    client = PrologClient(server)
-    assert client.wait_for_server(20.0)
-    yield client
-    client.close()
-
-
-@pytest.fixture(scope='module')
-def quick_table_i(prolog, tmp_path_factory):
+def quick_table_i(client, tmp_path_factory):
     """The quick Table I run through the service: (printed lines, results, report path)."""
     from projection_server.reproduce import reproduce
     from projection_server.reproduce.experiments import TABLE_I_GRASPING
     lines: list[str] = []
     out = tmp_path_factory.mktemp('reproduction')
-    results, report = reproduce(prolog, out, quick=True, experiments=[TABLE_I_GRASPING],
+    results, report = reproduce(client, out, quick=True, experiments=[TABLE_I_GRASPING],
                                 timeout=120.0, say=lines.append)
     return lines, results, report
 
@@ -72,12 +63,12 @@ def test_the_report_links_valid_png_files(quick_table_i):
         assert len(data) > 1000, name
 
 
-def test_an_experiment_whose_program_is_not_registered_is_skipped(prolog, tmp_path):
+def test_an_experiment_whose_program_is_not_registered_is_skipped(client, tmp_path):
     from projection_server.reproduce import run_experiment
     from projection_server.reproduce.experiments import TABLE_II_POURING
     missing = dataclasses.replace(TABLE_II_POURING, program='no_such_program')
     lines: list[str] = []
-    result = run_experiment(prolog, missing, quick=True, out=lines.append)
+    result = run_experiment(client, missing, quick=True, out=lines.append)
     assert result.skipped and not result.runs
     assert lines == [f'{missing.title}: skipped: program no_such_program is not registered '
                      'on the server (projection_program(no_such_program, _) fails)']
