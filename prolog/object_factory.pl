@@ -25,6 +25,8 @@ properties take the defaults of the type's class in the ontology.
     particle joined as in the paper's Fig. 7 (`model: "particles"`): starting
     at the particle nearest the centroid, each seed is joined to the
     not yet joined particles within `joint_radius`, which then become seeds.
+    The joined particles are laid into one flat layer (the batter sets into
+    a pancake; a heap of particles would otherwise make a lumpy one).
     The resulting `joints` form a tree (what a Bullet multibody needs);
     particles it does not reach (spilled ones) are left out.
   - `pancake_mix`, `particle_fluid`: a fluid of `particle_count` spheres.
@@ -68,8 +70,9 @@ factory_option(pancake, particle_radius).
 %       `particle_fluid` class), used to compute the radius.
 %
 %   A pancake built from particles has `model: "particles"`, its pose at
-%   the centroid of the joined particles (rpy 0), `particles` as offsets
-%   from that centroid (index 0 is the seed), `joints` as `[Parent, Child]`
+%   the centroid of the joined particles (rpy 0) with its bottom at the
+%   lowest particle's bottom, `particles` as horizontal offsets from that
+%   centroid (z 0; index 0 is the seed), `joints` as `[Parent, Child]`
 %   index pairs (Parent < Child), no ring_count/segment_count, and, unless
 %   given, `radius` = the largest
 %   horizontal distance of a particle from the centroid + particle_radius.
@@ -128,7 +131,9 @@ build(pancake, Options, Props0, _ClassPose, Props, Pose) :-
         PR = FluidDefaults.particle_radius
     ),
     JointRadius = Props0.joint_radius,
-    particle_pancake(Points, JointRadius, Centroid, Offsets, Joints),
+    particle_pancake(Points, JointRadius, [X,Y,_], Lowest, Offsets, Joints),
+    Z is Lowest - PR + Props0.thickness/2,    % its bottom at the lowest particle's
+    Centroid = [X,Y,Z],
     (   get_dict(radius, Options, _)
     ->  Radius = Props0.radius
     ;   foldl(max_horizontal, Offsets, 0.0, Reach),
@@ -160,18 +165,24 @@ check_point(P) :-
     must_be(list(number), P),
     (   P = [_,_,_] -> true ; domain_error(list_of_length(3), P) ).
 
-% particle_pancake(+Points, +Radius, -Centroid, -Offsets, -Joints)
+% particle_pancake(+Points, +Radius, -Centroid, -Lowest, -Offsets, -Joints)
 % Offsets are the joined points in joining order, relative to their
-% centroid; Joints are the tree's edges in those indices.
-particle_pancake(Points, Radius, Centroid, Offsets, Joints) :-
+% centroid and flattened into its horizontal plane (the batter sets into
+% one layer: a heap of particles becomes a flat pancake); Lowest is the
+% lowest z of a joined point; Joints are the tree's edges in those indices.
+particle_pancake(Points, Radius, Centroid, Lowest, Offsets, Joints) :-
     pancake_joint_graph(Points, Radius, Seed, Edges),
     maplist(edge_child, Edges, Children),
     Order = [Seed|Children],
     maplist(point_at(Points), Order, Joined),
     centroid(Joined, Centroid),
-    maplist(offset(Centroid), Joined, Offsets),
+    maplist(flat_offset(Centroid), Joined, Offsets),
+    foldl(lowest, Joined, inf, Lowest),
     numbered(Order, 0, Index),
     maplist(reindex(Index), Edges, Joints).
+
+lowest([_,_,Z], Z0, Z1) :-
+    Z1 is min(Z0, Z).
 
 edge_child([_, C], C).
 
@@ -181,8 +192,8 @@ point_at(Points, I, P) :-
 
 to_float(X0, X) :- X is float(X0).
 
-offset([CX,CY,CZ], [X,Y,Z], [DX,DY,DZ]) :-
-    DX is X-CX, DY is Y-CY, DZ is Z-CZ.
+flat_offset([CX,CY,_], [X,Y,_], [DX,DY,0.0]) :-
+    DX is X-CX, DY is Y-CY.
 
 numbered([], _, []).
 numbered([H|T], N, [H-N|R]) :-

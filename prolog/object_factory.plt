@@ -107,17 +107,23 @@ test(pancake_from_particles) :-
     E.properties.joints == [[0,1],[0,2],[1,3],[2,4]],
     close_points(E.properties.particles,
                  [[0,0,0],[-0.01,0,0],[0.01,0,0],[-0.02,0,0],[0.02,0,0]]),
-    close_points([E.pose.xyz], [[0.02,0,0.75]]),
+    % bottom at the particles' bottom: 0.75 - particle radius 0.005 + thickness/2
+    close_points([E.pose.xyz], [[0.02,0,0.749]]),
     E.pose.rpy == [0.0, 0.0, 0.0],
     close_to(E.properties.radius, 0.025),            % 0.02 + particle radius 0.005
     \+ get_dict(ring_count, E.properties, _).
+test(pancake_from_particles_is_one_flat_layer) :-
+    Ps = [[0,0,0.75],[0.01,0,0.75],[0.005,0,0.76],[0.0,0.01,0.76]],
+    object_model(pancake, _{particles: Ps, thickness: 0.01}, E),
+    forall(member([_,_,Z], E.properties.particles), Z =:= 0),
+    close_points([E.pose.xyz], [[0.00375,0.0025,0.75]]).   % 0.75 - 0.005 + 0.005
 test(pancake_from_particles_drops_spilled) :-
     Ps = [[0,0,0.75],[0.01,0,0.75],[-0.01,0,0.75],[0.5,0,0.72],[-0.5,0,0.72]],
     object_model(pancake, _{particles: Ps, particle_radius: 0.004}, E),
     length(E.properties.particles, 3),
     E.properties.joints == [[0,1],[0,2]],
     close_to(E.properties.radius, 0.014),
-    close_points([E.pose.xyz], [[0,0,0.75]]).
+    close_points([E.pose.xyz], [[0,0,0.75]]).      % not the spilled ones' height
 test(pancake_from_particles_keeps_given_radius, R == 0.09) :-
     object_model(pancake, _{particles: [[0,0,0.75]], radius: 0.09}, E),
     R = E.properties.radius.

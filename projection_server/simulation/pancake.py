@@ -35,6 +35,7 @@ side normal (see :mod:`projection_server.timeline.turning`).
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 import math
 from typing import Any, TYPE_CHECKING
@@ -55,6 +56,7 @@ REFERENCE_LINKS = ('rim_a', 'rim_b')
 COLOR = (0.85, 0.65, 0.3, 1.0)
 SELF_GROUP = 0x100        # collision group bit of pancake segments (they skip each other;
 #                           Bullet uses 1 and 2 for dynamic and static bodies)
+MAX_SEGMENTS = 32         # base + 31 spherical joints: what PyBullet reports states of
 SERVO_GAIN = 0.3          # position gain of the joint servos (the torque bound is the spring)
 
 
@@ -71,6 +73,7 @@ class Segment:
     yaw: float
     area: float
     name: str
+    spheres: tuple[tuple[float, float, float], ...] = ()   # 'sphere': one per particle
 
 
 def rings_layout(radius: float, thickness: float, ring_count: int,
@@ -97,9 +100,17 @@ def rings_layout(radius: float, thickness: float, ring_count: int,
     return out
 
 
-def particles_layout(particles: list[Any], joints: list[Any],
-                     thickness: float) -> list[Segment]:
-    """One sphere per particle offset, joined along the tree of ``joints``."""
+def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
+                     max_segments: int = MAX_SEGMENTS) -> list[Segment]:
+    """One segment per particle offset, joined along the tree of ``joints``.
+
+    PyBullet reports the joint states of at most :data:`MAX_SEGMENTS` - 1 spherical joints of
+    one multibody, fewer than the particles a pour leaves on the pan. Beyond that many, the
+    tree is contracted: the smallest segment is merged with the smallest one it is joined to
+    until few enough remain, so a segment is a connected group of particles of about equal
+    size (one sphere each); the factory's joints inside a group become rigid, the others stay
+    springs.
+    """
     points = np.asarray(particles, dtype=float).reshape(-1, 3)
     n = len(points)
     parents = [-1] * n
@@ -112,10 +123,27 @@ def particles_layout(particles: list[Any], joints: list[Any],
     if n == 0 or any(p == -1 for p in parents[1:]):
         raise ProjectionError('invalid_scenario', 'every pancake particle but the seed '
                                                   'needs a parent joint')
-    names = [f'p{i}' for i in range(n)]
+    head = list(range(n))             # each particle's segment, named by its first particle
+    while len(set(head)) > max_segments:
+        size = Counter(head)
+        # The smallest segment (the last joined on a tie: the rim first) joins the smallest
+        # segment it shares a joint with; the union's first particle names it.
+        small = min(size, key=lambda h: (size[h], -h))
+        touching = {head[j] for i in range(1, n) for j in (i, parents[i])
+                    if small in (head[i], head[parents[i]])} - {small}
+        other = min(touching, key=lambda h: (size[h], -h))
+        keep, drop = min(small, other), max(small, other)
+        head = [keep if h == drop else h for h in head]
+    heads = sorted(set(head))         # ascending: a parent segment before its children
+    index = {h: k for k, h in enumerate(heads)}
+    members: dict[int, list[int]] = {h: [] for h in heads}
+    for i in range(n):
+        members[head[i]].append(i)
+    pivots = [points[0]] + [(points[h] + points[parents[h]]) / 2 for h in heads[1:]]
+    rel = np.asarray(pivots) - points[0]
+    names = [f'p{h}' for h in heads]
     names[0] = 'centre'
-    rel = points - points[0]
-    if n >= 3:
+    if len(heads) >= 3:
         a = int(np.argmax(np.linalg.norm(rel[:, :2], axis=1)))
         angle = np.arctan2(rel[:, 1], rel[:, 0]) - math.atan2(rel[a, 1], rel[a, 0])
         score = -np.abs(np.mod(angle, 2 * math.pi) - math.pi / 2)
@@ -123,9 +151,11 @@ def particles_layout(particles: list[Any], joints: list[Any],
         b = int(np.argmax(score))
         names[a], names[b] = REFERENCE_LINKS
     area = math.pi * thickness * thickness / 4
-    return [Segment(tuple(points[i]), parents[i],
-                    tuple((points[i] + points[parents[i]]) / 2) if i else tuple(points[0]),
-                    'sphere', (thickness,) * 3, 0.0, area, names[i]) for i in range(n)]
+    return [Segment(tuple(points[members[h]].mean(axis=0)),
+                    index[head[parents[h]]] if h else -1, tuple(pivots[k]), 'sphere',
+                    (thickness,) * 3, 0.0, area * len(members[h]), names[k],
+                    tuple(tuple(points[i]) for i in members[h]))
+            for k, h in enumerate(heads)]
 
 
 def build_pancake(physics: Physics, entity: Entity) -> None:
@@ -168,9 +198,9 @@ def build_pancake(physics: Physics, entity: Entity) -> None:
         c.changeDynamics(body_id, link, lateralFriction=p['friction'],
                          restitution=p['restitution'], linearDamping=0.0, angularDamping=0.0)
         c.setCollisionFilterGroupMask(body_id, link, SELF_GROUP, 0x7FFFFFFF & ~SELF_GROUP)
-    link_shapes = {i: [(_marker_shape(s), tuple(np.asarray(s.centre) - frames[i + 1]))]
-                   for i, s in enumerate(links)}
-    physics.add_body(Body(entity.name, entity.cls, body_id, False, _marker_shape(root),
+    # Markers in each segment's frame (-1: the base), so that they turn with the segment.
+    link_shapes = {i - 1: _marker_shapes(c, s, frames[i]) for i, s in enumerate(segments)}
+    physics.add_body(Body(entity.name, entity.cls, body_id, False, None,
                           links={i: s.name for i, s in enumerate(links)},
                           link_shapes=link_shapes))
     physics.models.append(PancakeSprings(entity.name, c, body_id, len(links),
@@ -181,8 +211,10 @@ def _collision_shape(c: Any, s: Segment, offset: np.ndarray) -> int:
     yaw = c.getQuaternionFromEuler((0.0, 0.0, s.yaw))
     radial, tangential, thickness = s.size
     if s.kind == 'sphere':
-        return c.createCollisionShape(c.GEOM_SPHERE, radius=thickness / 2,
-                                      collisionFramePosition=offset)
+        shift = offset - np.asarray(s.centre)
+        return c.createCollisionShapeArray(
+            [c.GEOM_SPHERE] * len(s.spheres), radii=[thickness / 2] * len(s.spheres),
+            collisionFramePositions=[list(np.asarray(q) + shift) for q in s.spheres])
     # Rings and centre: capsules of the thickness along the segment's inner and outer edge
     # (the centre: two across it), so every edge a blade can meet is round.
     r = thickness / 2
@@ -202,10 +234,18 @@ def _collision_shape(c: Any, s: Segment, offset: np.ndarray) -> int:
         collisionFrameOrientations=[capsule, capsule])
 
 
-def _marker_shape(s: Segment) -> Shape:
+def _marker_shapes(c: Any, s: Segment, frame: np.ndarray) -> list[tuple[Shape, tuple]]:
+    """The segment as markers with their offsets from its frame: a sphere per particle, a
+    box turned to the ring segment's direction, or the centre disc."""
+    radial, tangential, thickness = s.size
     if s.kind == 'sphere':
-        return Shape('sphere', s.size, COLOR)
-    return Shape('cylinder', (s.size[0], s.size[0], s.size[2]), COLOR)
+        return [(Shape('sphere', s.size, COLOR), tuple(np.asarray(q) - frame))
+                for q in s.spheres]
+    offset = tuple(np.asarray(s.centre) - frame)
+    if s.kind == 'disc':
+        return [(Shape('cylinder', (radial, radial, thickness), COLOR), offset)]
+    return [(Shape('box', s.size, COLOR, c.getQuaternionFromEuler((0.0, 0.0, s.yaw))),
+             offset)]
 
 
 class PancakeSprings:

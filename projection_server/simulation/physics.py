@@ -35,11 +35,13 @@ Quat = tuple[float, float, float, float]
 
 @dataclass(frozen=True)
 class Shape:
-    """What a body looks like, for markers: kind and full extents along its own axes [m]."""
+    """What a body looks like, for markers: kind, full extents along its own axes [m] and
+    their orientation in the body's (or link's) frame."""
 
     kind: str                      # box, cylinder, sphere (scaled: ellipsoid), plane
     size: Vec3
     color: tuple[float, float, float, float] = (0.7, 0.7, 0.7, 1.0)
+    orientation: Quat = (0.0, 0.0, 0.0, 1.0)
 
 
 @dataclass

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from projection_server.simulation import Job
-from projection_server.simulation.pancake import particles_layout, REFERENCE_LINKS, rings_layout
+from projection_server.simulation.pancake import (MAX_SEGMENTS, particles_layout,
+                                                   REFERENCE_LINKS, rings_layout)
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.settings import load_settings
@@ -137,6 +138,37 @@ def test_the_particles_layout_follows_the_factorys_joints():
     assert {s.name for s in segments} >= set(REFERENCE_LINKS)
 
 
+def _disc_of_particles(count, spacing=0.012):
+    """``count`` particles on a square grid, nearest the centre first, each joined to the
+    nearest earlier one (a tree like the factory's)."""
+    side = math.ceil(math.sqrt(count)) + 2
+    grid = [(i - side // 2, j - side // 2) for i in range(side) for j in range(side)]
+    grid.sort(key=lambda q: (q[0] ** 2 + q[1] ** 2, q))
+    points = [[x * spacing, y * spacing, 0.0] for x, y in grid[:count]]
+    joints = [[min(range(i), key=lambda j: math.dist(points[i], points[j])), i]
+              for i in range(1, count)]
+    return points, joints
+
+
+def test_many_particles_are_contracted_into_groups_of_about_equal_size():
+    points, joints = _disc_of_particles(144)
+    segments = particles_layout(points, joints, 0.008)
+    assert len(segments) == MAX_SEGMENTS
+    assert all(0 <= s.parent < i for i, s in enumerate(segments) if i)
+    spheres = sorted(q for s in segments for q in s.spheres)
+    assert spheres == sorted(tuple(q) for q in points)   # every particle, once
+    sizes = [len(s.spheres) for s in segments]
+    assert max(sizes) <= 3 * min(sizes)
+    # A group is connected: every particle but the group's first has its parent inside it.
+    parent = {c: p for p, c in joints}
+    index = {tuple(q): i for i, q in enumerate(points)}
+    for s in segments:
+        members = {index[q] for q in s.spheres}
+        assert sum(parent.get(i) not in members for i in members) == 1
+    names = [s.name for s in segments]
+    assert set(REFERENCE_LINKS) <= set(names) and names[0] == 'centre'
+
+
 # --- the world -------------------------------------------------------------------------
 def _world(scenario):
     import pybullet
@@ -163,6 +195,19 @@ def test_the_pancake_rests_on_the_maker_and_a_particle_pancake_builds_too():
     client, physics = _world(scenario)
     try:
         assert len(physics.bodies['pancake1'].links) == 4
+    finally:
+        client.disconnect()
+    # As many particles as a generous pour leaves: the springs read every joint's state.
+    points, joints = _disc_of_particles(150)
+    pancake['properties'].update(particles=points, joints=joints)
+    client, physics = _world(scenario)
+    try:
+        body = physics.bodies['pancake1']
+        assert len(body.links) == MAX_SEGMENTS - 1
+        for _ in range(60):
+            physics.step()
+        states = client.getJointStatesMultiDof(body.body_id, list(body.links))
+        assert all(len(quat) == 4 for quat, *_ in states)
     finally:
         client.disconnect()
 
