@@ -198,10 +198,14 @@ def build_pancake(physics: Physics, entity: Entity) -> None:
         c.changeDynamics(body_id, link, lateralFriction=p['friction'],
                          restitution=p['restitution'], linearDamping=0.0, angularDamping=0.0)
         c.setCollisionFilterGroupMask(body_id, link, SELF_GROUP, 0x7FFFFFFF & ~SELF_GROUP)
+    # PyBullet numbers the links depth first, not in the given order; the names it gives
+    # them ("link<k>", k = 1 for the first given) keep the given order.
+    segment = {-1: 0} | {j: int(c.getJointInfo(body_id, j)[12].decode()[len('link'):])
+                         for j in range(c.getNumJoints(body_id))}
     # Markers in each segment's frame (-1: the base), so that they turn with the segment.
-    link_shapes = {i - 1: _marker_shapes(c, s, frames[i]) for i, s in enumerate(segments)}
+    link_shapes = {j: _marker_shapes(c, segments[k], frames[k]) for j, k in segment.items()}
     physics.add_body(Body(entity.name, entity.cls, body_id, False, None,
-                          links={i: s.name for i, s in enumerate(links)},
+                          links={j: segments[k].name for j, k in segment.items() if j >= 0},
                           link_shapes=link_shapes))
     physics.models.append(PancakeSprings(entity.name, c, body_id, len(links),
                                          p['joint_stiffness'], p['joint_damping']))

@@ -178,6 +178,37 @@ def _world(scenario):
     return client, build_world(client, parse_scenario(scenario), load_settings())
 
 
+def _link_positions_match_the_layout(client, physics, entity, segments):
+    body = physics.bodies[entity['name']]
+    pose = np.asarray(entity['pose']['xyz'], dtype=float)
+    assert sorted(body.links.values()) == sorted(s.name for s in segments[1:])
+    pivots = {s.name: np.asarray(s.pivot) for s in segments}
+    for link, name in body.links.items():
+        position, _ = physics.link_pose(entity['name'], link)
+        assert np.allclose(np.asarray(position) - pose, pivots[name], atol=1e-6), name
+
+
+def test_the_link_names_follow_the_segments_pybullet_reorders():
+    # PyBullet numbers a multibody's links depth first; names must follow the segments.
+    scenario = copy.deepcopy(TURNING)
+    pancake = next(e for e in scenario['entities'] if e['name'] == 'pancake1')
+    client, physics = _world(scenario)
+    try:
+        p = pancake['properties']
+        _link_positions_match_the_layout(client, physics, pancake, rings_layout(
+            p['radius'], p['thickness'], int(p['ring_count']), int(p['segment_count'])))
+    finally:
+        client.disconnect()
+    points, joints = _disc_of_particles(100)
+    pancake['properties'].update(model='particles', particles=points, joints=joints)
+    client, physics = _world(scenario)
+    try:
+        segments = particles_layout(points, joints, pancake['properties']['thickness'])
+        _link_positions_match_the_layout(client, physics, pancake, segments)
+    finally:
+        client.disconnect()
+
+
 def test_the_pancake_rests_on_the_maker_and_a_particle_pancake_builds_too():
     scenario = copy.deepcopy(TURNING)
     client, physics = _world(scenario)
