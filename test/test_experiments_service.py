@@ -72,6 +72,26 @@ def test_turning_in_table_iiis_form_is_ok_at_a_small_angle_and_fails_at_a_large_
     assert [(s['A'], s['O']) for s in sols] == [(0.1, 'ok'), (0.9, 'fail')]
 
 
+def test_a_pancake_made_from_a_pours_particles_turns_at_a_small_angle_only(call):
+    # The paper's Fig. 7 end to end: pour, build the pancake from the particles that
+    # stayed on the pan, turn it with the spatula.
+    sols = ask(call, '''
+        make_projection(pouring, pour,
+                        [(_, angle, [2.14]), (_, time, [0.5]), (_, position, [0.0])], PourTL),
+        quantity(particles_on(pancake_maker1), N, PourTL),
+        quantity(particles_on_positions(pancake_maker1), Points, PourTL),
+        create_scenario(S),
+        add_to_scenario(S, [kitchen_env, pr2_robot, pancake_maker1, spatula1,
+                            object(pancake, _{name: poured, particles: Points})]),
+        scenario_entity(S, poured, Pancake), get_dict(properties, Pancake, Props),
+        get_dict(particles, Props, Joined0), length(Joined0, Joined),
+        make_projection(S, turn_pancake, [(A, angle, [0.1, 0.9])], TL),
+        ( holds(upside_down(poured), _, TL) -> O = ok ; O = fail )''')
+    assert [(s['A'], s['O']) for s in sols] == [(0.1, 'ok'), (0.9, 'fail')]
+    # Every particle on the pan is in the pancake (the factory joins them all).
+    assert sols[0]['N'] > 100 and sols[0]['Joined'] == sols[0]['N']
+
+
 def _pour_goals(scenario: str, tl: str) -> str:
     """Project the pour in ``scenario``; bind Bag<tl>, N<tl>, EF<tl>; remove the timeline."""
     return f'''

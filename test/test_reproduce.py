@@ -163,3 +163,14 @@ def test_the_printed_table_and_the_report_carry_the_why_line(tmp_path):
     assert format_table(result).splitlines()[-1] == f'why: {explain(result)}'
     text = write_report([result], tmp_path, frames=False).read_text()
     assert f'Why: {explain(result)}.' in text
+
+
+def test_the_poured_pancake_experiment_builds_its_scenario_before_projecting():
+    from projection_server.reproduce.experiments import (EXPERIMENTS, TABLE_III_POURED_PANCAKE,
+                                                         TABLE_III_TURNING)
+    query = TABLE_III_POURED_PANCAKE.query(quick=True)
+    setup, projection = query.index('add_to_scenario(S'), query.index('make_projection(S, ')
+    assert query.startswith('make_projection(pouring, pour, ') and setup < projection
+    assert 'object(pancake, _{name: pancake1, particles: Points})' in query
+    assert TABLE_III_TURNING.query(quick=True).startswith('make_projection(turning, ')
+    assert [e.key for e in EXPERIMENTS][-1] == 'table3_poured'
