@@ -164,38 +164,29 @@ def _measure_line(exp: Experiment, m: Any, pairs: list, undefined: int,
     bits = []
     n = len(pairs)
     if n and (higher or lower):
-        mean_diff = mean(o - t for _, t, o in pairs)
         if len(higher) >= 0.75 * n:
-            bits.append(f'ours higher in {len(higher)}/{n} (mean {mean_diff:+.3g})')
+            bits.append(f'ours higher in {len(higher)}/{n}')
         elif len(lower) >= 0.75 * n:
-            bits.append(f'ours lower in {len(lower)}/{n} (mean {mean_diff:+.3g})')
+            bits.append(f'ours lower in {len(lower)}/{n}')
         else:
-            bits.append(f'{len(higher)} higher, {len(lower)} lower of {n} '
-                        f'(no systematic offset)')
-        if m.column == 'pan' or max(t for _, t, _ in pairs) >= 10:
-            paper_max = max(t for _, t, _ in pairs)
-            ours_max = max(o for _, _, o in pairs)
-            if ours_max < 0.75 * paper_max:
-                text = f'ours peak at {_fmt(ours_max)} (paper up to {_fmt(paper_max)})'
-                if m.column == 'pan' and totals:
-                    cap = max(totals)
-                    text += (f', capped by the particles poured: pan+spill never exceeds '
-                             f'{_fmt(cap)}')
-                    if totals.count(cap) >= 2:
-                        text += f' and reaches it in {totals.count(cap)} runs (the whole batch)'
-                bits.append(text)
+            bits.append(f'{len(higher)} higher, {len(lower)} lower of {n}')
+        paper_max = max(t for _, t, _ in pairs)
+        ours_max = max(o for _, _, o in pairs)
+        if m.column == 'pan' and totals and ours_max < 0.75 * paper_max:
+            bits.append(f'ours at most {_fmt(ours_max)} (paper {_fmt(paper_max)}), '
+                        f'at most {_fmt(max(totals))} poured')
         bits += _trends(exp, pairs)
     if undefined:
-        bits.append(f'{undefined} cells the paper leaves undefined have a value in ours')
+        bits.append(f'{undefined} the paper leaves undefined')
     if not bits:
         return None
     return f'{m.column}: ' + ', '.join(bits)
 
 
 def _trends(exp: Experiment, pairs: list) -> list[str]:
-    """Per parameter with several values: where ours and the paper's means differ most,
-    and whether they trend the same way along it."""
-    out = []
+    """Along each parameter with several values: whether ours and the paper's means trend
+    the same way (named together) or opposite ways (with both ends)."""
+    same, opposite = [], []
     for i, p in enumerate(exp.params):
         values = sorted({k[i] for k, _, _ in pairs})
         if len(values) < 2:
@@ -208,15 +199,9 @@ def _trends(exp: Experiment, pairs: list) -> list[str]:
         scale = max(abs(x) for x in (*paper.values(), *ours.values())) or 1.0
         if abs(d_paper) < 0.1 * scale and abs(d_ours) < 0.1 * scale:
             continue
-        if (d_paper > 0) != (d_ours > 0):
-            out.append(f'along {p.name} the paper goes {_fmt(paper[lo])}→{_fmt(paper[hi])}, '
-                       f'ours {_fmt(ours[lo])}→{_fmt(ours[hi])} (opposite trend)')
-            continue
-        worst = max(values, key=lambda v: abs(ours[v] - paper[v]))
-        more = 'more' if ours[worst] > paper[worst] else 'less'
-        steeper = 'steeper' if abs(d_ours) > abs(d_paper) else 'flatter'
-        out.append(f'both {"rise" if d_paper > 0 else "fall"} with {p.name} '
-                   f'(ours {steeper}: {_fmt(ours[lo])}→{_fmt(ours[hi])} vs '
-                   f'{_fmt(paper[lo])}→{_fmt(paper[hi])}); at {p.name} {p.show(worst)} '
-                   f'ours {more} ({_fmt(ours[worst])} vs {_fmt(paper[worst])})')
-    return out
+        if (d_paper > 0) == (d_ours > 0):
+            same.append(f'{"rising" if d_paper > 0 else "falling"} with {p.name}')
+        else:
+            opposite.append(f'opposite with {p.name} (paper {_fmt(paper[lo])}→'
+                            f'{_fmt(paper[hi])}, ours {_fmt(ours[lo])}→{_fmt(ours[hi])})')
+    return (['both ' + ' and '.join(same)] if same else []) + opposite
