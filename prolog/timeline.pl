@@ -285,23 +285,7 @@ timeline_fluent_intervals(F, Intervals, TL) :-
 %   @error type_error(time, Time) if Time is ground but not a time.
 
 holds(F, T, TL) :-
-    must_be_timeline(TL),
-    must_be_pattern(F),
-    (   ground(T)
-    ->  must_be_time(T),
-        (   ground(F)
-        ->  once(holds_at(F, T, TL))
-        ;   distinct(F, holds_at(F, T, TL))
-        )
-    ;   tl_fluent(TL, Term, I),
-        matches(F, Term),
-        T = I
-    ).
-
-holds_at(F, T, TL) :-
-    tl_fluent(TL, Term, I),
-    matches(F, Term),
-    time_inside(T, I).
+    record_at(fluent, F, T, TL).
 
 %!  occurs(?Event, ?Time, +Timeline) is nondet.
 %
@@ -320,22 +304,41 @@ holds_at(F, T, TL) :-
 %   @error as for holds/3, with type_error(callable, Event).
 
 occurs(Ev, T, TL) :-
+    record_at(event, Ev, T, TL).
+
+% record_at(+Kind, ?Pattern, ?Time, +Timeline): a record of Kind (fluent
+% or event) matching Pattern is at or over Time in Timeline; holds/3 and
+% occurs/3 as documented there.
+record_at(Kind, P, T, TL) :-
     must_be_timeline(TL),
-    must_be_pattern(Ev),
+    must_be_pattern(P),
     (   ground(T)
     ->  must_be_time(T),
-        (   ground(Ev)
-        ->  once(occurs_at(Ev, T, TL))
-        ;   distinct(Ev, occurs_at(Ev, T, TL))
+        (   ground(P)
+        ->  once(record_at_time(Kind, P, T, TL))
+        ;   distinct(P, record_at_time(Kind, P, T, TL))
         )
-    ;   tl_event(TL, Term, Time),
-        matches(Ev, Term),
+    ;   stored(Kind, TL, Term, Time),
+        matches(P, Term),
         T = Time
     ).
 
-occurs_at(Ev, T, TL) :-
-    tl_event(TL, Term, Time),
-    matches(Ev, Term),
+record_at_time(Kind, P, T, TL) :-
+    stored(Kind, TL, Term, Time),
+    matches(P, Term),
+    at_time(Kind, T, Time).
+
+% stored(+Kind, ?Timeline, ?Term, ?Time).  Clauses rather than call/N,
+% so that library(sandbox) can still verify holds/3 and occurs/3.
+stored(fluent, TL, Term, I) :- tl_fluent(TL, Term, I).
+stored(event, TL, Term, T) :- tl_event(TL, Term, T).
+
+% at_time(+Kind, +T, +Time): the stored Time fits the query time T.  A
+% fluent must hold throughout T; an event must happen at a point T, or
+% lie within an interval T.
+at_time(fluent, T, I) :-
+    time_inside(T, I).
+at_time(event, T, Time) :-
     (   number(T)
     ->  time_inside(T, Time)
     ;   time_inside(Time, T)

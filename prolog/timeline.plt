@@ -144,6 +144,14 @@ test(occurs_unknown_timeline, error(existence_error(timeline, nope))) :-
 test(occurs_non_callable, error(type_error(callable, 1.5))) :-
     with_egg(TL), occurs(1.5, _, TL).
 
+% holds/3 and occurs/3 share their code; each sees only its own records
+test(holds_not_events, fail) :-
+    with_egg(TL), holds(drop, _, TL).
+test(occurs_not_fluents, fail) :-
+    with_egg(TL), occurs(upside_down, _, TL).
+test(occurs_not_fluents_at_point, fail) :-
+    with_egg(TL), occurs(broken(_), 3.0, TL).
+
 % quantities
 test(quantity, [V =:= 31.5, nondet]) :-
     with_egg(TL), quantity(max_force(egg1), V, TL).

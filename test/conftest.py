@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import time
 
 import pytest
 
@@ -18,13 +16,6 @@ NODE_PARAMS = {
     'max_engines': 6,
     'max_solutions': 50,
 }
-
-
-def _node_command(name: str, params: dict) -> list[str]:
-    cmd = ['projection_server', '--ros-args', '-r', f'__node:={name}']
-    for key, value in params.items():
-        cmd += ['-p', f'{key}:={value}']
-    return cmd
 
 
 @pytest.fixture(scope='session')
@@ -38,37 +29,14 @@ def rclpy_context():
 @pytest.fixture(scope='session')
 def server(rclpy_context, tmp_path_factory):
     """Start the node; yield its name. Its log is kept in the test's tmp dir."""
+    from projection_server.launcher import node_command, NodeProcess
     name = 'projection_server'
     log = tmp_path_factory.mktemp('node') / 'node.log'
     params = {**NODE_PARAMS, 'bag_dir': str(tmp_path_factory.mktemp('bags'))}
-    with open(log, 'w') as out:
-        proc = subprocess.Popen(_node_command(name, params), stdout=out,
-                                stderr=subprocess.STDOUT, start_new_session=True)
-    try:
-        _wait_for_service(f'/{name}/query', proc, log)
+    with NodeProcess(node_command(name, params), log) as proc:
+        proc.wait_for_service(f'/{name}/query')
         yield f'/{name}'
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
     assert proc.returncode in (0, -signal.SIGINT), log.read_text()
-
-
-def _wait_for_service(service: str, proc, log, timeout: float = 60.0):
-    from projection_interfaces.srv import PrologQuery
-    import rclpy
-    node = rclpy.create_node('fixture_probe')
-    try:
-        client = node.create_client(PrologQuery, service)
-        deadline = time.monotonic() + timeout
-        while not client.wait_for_service(timeout_sec=0.5):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f'node did not come up:\n{log.read_text()}')
-    finally:
-        node.destroy_node()
 
 
 @pytest.fixture(scope='session')

@@ -9,21 +9,17 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 from pathlib import Path
 import shutil
-import signal
-import subprocess
 import sys
-import time
 from typing import Iterator, TYPE_CHECKING
+
+from projection_server.launcher import LaunchError, node_command, NodeProcess
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
 __all__ = ['main', 'ReproduceError']
-
-NODE_STARTUP_TIMEOUT = 60.0
 
 
 class ReproduceError(Exception):
@@ -62,7 +58,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 _server(client, args.server, args.out / 'bags', args.timeout):
             reproduce(client, args.out, quick=args.quick, experiments=experiments,
                       timeout=args.timeout, frames=not args.no_frames, say=_say)
-    except (ReproduceError, PrologClientError) as exc:
+    except (ReproduceError, LaunchError, PrologClientError) as exc:
         print(f'reproduce: {exc}', file=sys.stderr)
         return 1
     finally:
@@ -77,6 +73,8 @@ def _say(line: str) -> None:
 @contextlib.contextmanager
 def _server(client, server: str, bag_dir: Path, timeout: float) -> Iterator[None]:
     """Use the node at ``server`` if it answers, else run our own for the block's duration."""
+    from projection_server.client import PrologClientError
+
     if client.wait_for_server(3.0):
         _say(f'using the running node {server}')
         yield
@@ -86,33 +84,20 @@ def _server(client, server: str, bag_dir: Path, timeout: float) -> Iterator[None
         message = (f'no node answers at {server} and there is no projection_server command '
                    'to start one (run inside tools/with_env.sh)')
         raise ReproduceError(message)
-    namespace, _, name = server.rstrip('/').rpartition('/')
     bag_dir.mkdir(parents=True, exist_ok=True)
     log_path = bag_dir.parent / 'node.log'
-    cmd = [command, '--ros-args', '-r', f'__node:={name}',
-           '-p', f'bag_dir:={bag_dir}', '-p', 'projection_workers:=2',
-           '-p', f'default_timeout:={timeout}']
-    if namespace:
-        cmd[2:2] = ['-r', f'__ns:={namespace}']
+    cmd = node_command(server, {'bag_dir': bag_dir, 'projection_workers': 2,
+                                'default_timeout': timeout}, executable=command)
     _say(f'starting a node at {server} (log: {log_path})')
-    with open(log_path, 'w') as log:
-        proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
-                                start_new_session=True)
-    try:
-        deadline = time.monotonic() + NODE_STARTUP_TIMEOUT
-        while not client.wait_for_server(0.5):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                message = f'the node did not come up:\n{log_path.read_text()[-2000:]}'
-                raise ReproduceError(message)
-        yield
-    finally:
-        client.finish_all() if proc.poll() is None else None
-        proc.send_signal(signal.SIGINT)
+    with NodeProcess(cmd, log_path, stop_timeout=20.0) as proc:
+        proc.wait_for_service(f'{server}/query')
         try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+            yield
+        finally:
+            if proc.running:
+                # Release our queries before the node shuts down.
+                with contextlib.suppress(PrologClientError):
+                    client.finish_all()
 
 
 if __name__ == '__main__':
