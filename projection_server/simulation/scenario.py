@@ -125,6 +125,7 @@ PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
         'restitution': (0.0, _FRACTION),
         'rolling_friction': (0.0, _NONNEGATIVE),
         'spinning_friction': (0.0, _NONNEGATIVE),
+        'damping': (5.0, _NONNEGATIVE),
         'container': (None, 'name'),
     },
 }

@@ -22,8 +22,10 @@ How each class becomes bodies (poses are world poses of the object's centre unle
 * ``pancake``: a deformable body of jointed segments
   (:func:`projection_server.simulation.pancake.build_pancake`).
 * ``particle_fluid``: ``particle_count`` spheres, registered as one :class:`Fluid` (contacts
-  are reported under the fluid's name), damped by :data:`FLUID_DAMPING` (viscosity). With a ``container`` they fill its inside from the
-  bottom in hexagonal layers; without one they form a cubic block at the pose.
+  are reported under the fluid's name), their velocities damped by the fluid's ``damping``
+  (viscosity: Bullet decelerates a particle by ``damping * v * (1 + |v|)``). With a
+  ``container`` they fill its inside from the bottom in hexagonal layers; without one they
+  form a cubic block at the pose.
 """
 
 from __future__ import annotations
@@ -55,12 +57,6 @@ REMAINS_COLOR = (0.95, 0.75, 0.2, 1.0)
 REMAINS_FLATNESS = 0.3   # height of a broken egg's remains relative to its diameter
 CUP_SEGMENTS = 16        # wall boxes of a cup
 PARTICLE_GAP = 1.05      # spacing of spawned particles relative to their diameter
-# Viscosity of a particle fluid (batter): Bullet damps a particle's velocity v by a
-# deceleration FLUID_DAMPING * v * (1 + |v|) [1/s], so batter flows out of a tilted cup at a
-# rate that grows with the tilt, falls at most ~1.6 m/s and does not bounce or roll on the
-# pan; friction on the cup wall (the fluid's ``friction`` in the scenario) keeps it in a cup
-# that is tilted little past horizontal. A constant of the model, not yet a KB property.
-FLUID_DAMPING = 5.0
 
 
 def assets_dir() -> Path:
@@ -352,7 +348,7 @@ def _build_particle_fluid(physics: Physics, entity: Entity) -> None:
         _surface(c, body, p)
         c.changeDynamics(body, -1, rollingFriction=p['rolling_friction'],
                          spinningFriction=p['spinning_friction'],
-                         linearDamping=FLUID_DAMPING, angularDamping=FLUID_DAMPING)
+                         linearDamping=p['damping'], angularDamping=p['damping'])
         fluid.body_ids.append(body)
         physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False, None,
                               group=entity.name))

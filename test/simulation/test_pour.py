@@ -15,8 +15,7 @@ from projection_server.timeline import pouring
 from projection_server.timeline.translate import translate_bag
 
 # The knowledge base's pouring scenario (keys and values of prolog/kb/kitchen.ttl; the robot,
-# parked out of the way, is left out), but for a slicker pancake maker: friction 0.3, not
-# the knowledge base's 0.7, on which a few projections spill too little to compare.
+# parked out of the way, is left out).
 POURING = {
     'name': 'pouring',
     'entities': [
@@ -29,17 +28,18 @@ POURING = {
                              'height': 0.72, 'mass': 0.0, 'friction': 0.6,
                              'restitution': 0.1}}]},
         {'name': 'cup1', 'class': 'cup', 'pose': {'xyz': [0.0, 0.0, 0.825]},
-         'properties': {'shape': 'cup', 'mass': 0.2, 'friction': 0.5, 'restitution': 0.1,
+         'properties': {'shape': 'cup', 'mass': 0.2, 'friction': 1.0, 'restitution': 0.1,
                         'height': 0.11, 'wall_thickness': 0.004, 'radius': 0.045},
          'parts': [
              {'name': 'pancake_mix1', 'class': 'particle_fluid',
               'pose': {'xyz': [0.0, 0.0, 0.825]},
-              'properties': {'shape': 'sphere', 'friction': 0.6, 'restitution': 0.0,
+              'properties': {'shape': 'sphere', 'friction': 0.35, 'restitution': 0.0,
                              'particle_radius': 0.006, 'particle_count': 150,
                              'particle_mass': 0.001, 'rolling_friction': 0.02,
-                             'spinning_friction': 0.02, 'container': 'cup1'}}]},
+                             'spinning_friction': 0.02, 'damping': 30.0,
+                             'container': 'cup1'}}]},
         {'name': 'pancake_maker1', 'class': 'pancake_maker', 'pose': {'xyz': [0.0, 0.0, 0.735]},
-         'properties': {'shape': 'cylinder', 'mass': 0.0, 'friction': 0.3,
+         'properties': {'shape': 'cylinder', 'mass': 0.0, 'friction': 0.7,
                         'restitution': 0.05, 'height': 0.03, 'radius': 0.15}},
     ],
 }
