@@ -200,8 +200,13 @@ def _trends(exp: Experiment, pairs: list) -> list[str]:
         if abs(d_paper) < 0.1 * scale and abs(d_ours) < 0.1 * scale:
             continue
         if (d_paper > 0) == (d_ours > 0):
-            same.append(f'{"rising" if d_paper > 0 else "falling"} with {p.name}')
+            same.append((d_paper > 0, p.name))
         else:
             opposite.append(f'opposite with {p.name} (paper {_fmt(paper[lo])}→'
                             f'{_fmt(paper[hi])}, ours {_fmt(ours[lo])}→{_fmt(ours[hi])})')
-    return (['both ' + ' and '.join(same)] if same else []) + opposite
+    if same:
+        ways = [f'{word} with {", ".join(n for up, n in same if up == rising)}'
+                for rising, word in ((True, 'rising'), (False, 'falling'))
+                if any(up == rising for up, _ in same)]
+        opposite.insert(0, 'both ' + ' and '.join(ways))
+    return opposite

@@ -6,20 +6,25 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 import re
 from typing import Any, TYPE_CHECKING
 
+import numpy as np
+
 from projection_server.reproduce.experiments import compare
 from projection_server.reproduce.explain import explain
+from projection_server.simulation.errors import ProjectionError
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
-    from projection_server.reproduce.experiments import Experiment, Result
+    from projection_server.reproduce.experiments import Experiment, Result, Run
 
-__all__ = ['OUTCOME_COLORS', 'format_table', 'grid_png', 'markdown_table', 'write_report']
+__all__ = ['OUTCOME_COLORS', 'format_table', 'grid_png', 'markdown_table', 'pca_png',
+           'write_report']
 
 OUTCOME_COLORS = {'ok': '#4caf50', 'slip': '#ff9800', 'break': '#e53935', 'fail': '#e53935'}
 MISSING_COLOR = '#d0d0d0'
@@ -137,6 +142,7 @@ def write_report(results: Sequence[Result], out: str | Path, *, frames: bool = T
             png = grid_png(result, out / f'{exp.key}_grid.png')
             md += [f'![{exp.title}]({png.name})', '']
         md += [markdown_table(result), '']
+        md += _pca_section(result, out, log)
         if frames:
             md += _frames_section(result, out, render, log)
     path = out / 'report.md'
@@ -169,6 +175,86 @@ def _frames_section(result: Result, out: Path, render: Any,
                f'events: {events}. Rendered from the bag `{run.bag}`.', '',
                f'![{showcase.caption}]({png.name})', '']
     return md
+
+
+def _pca_section(result: Result, out: Path, log: Callable[[str], None]) -> list[str]:
+    """The paper's Fig. 6 for our runs: the roundest and the least round configuration of
+    particles on the pan (at least 10 of them), with their principal axes."""
+    rounded = [r for r in result.runs if isinstance(r.value, dict)
+               and isinstance(r.value.get('round'), (int, float))
+               and isinstance(r.value.get('pan'), (int, float)) and r.value['pan'] >= 10]
+    if len(rounded) < 2:
+        return []
+    chosen = [max(rounded, key=lambda r: r.value['round']),
+              min(rounded, key=lambda r: r.value['round'])]
+    try:
+        png = pca_png(result.experiment, chosen, out / f'{result.experiment.key}_pca.png')
+    except ProjectionError as exc:
+        log(f'  no PCA plot: {exc}')
+        return []
+    return ['### PCA of particle configurations on the pancake maker (Fig. 6)', '',
+            f'![PCA of particle configurations]({png.name})', '']
+
+
+def pca_png(exp: Experiment, runs: Sequence[Run], path: str | Path) -> Path:
+    """Fig. 6 for ``runs``: the on-pan particles of each run's bag (top view, relative to the
+    pancake maker's centre) with their principal axes, two standard deviations long."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    from projection_server.timeline import pouring
+    from projection_server.timeline.translate import translate_bag
+
+    from matplotlib.patches import Circle
+
+    fig, axes = plt.subplots(1, len(runs), figsize=(3.6 * len(runs), 3.8), squeeze=False)
+    for ax, run in zip(axes[0], runs):
+        timeline = translate_bag(run.bag)
+        points = next((q[2] for q in timeline['quantities']
+                       if q[0] == 'particles_on_positions'), [])
+        xy = np.asarray(points, dtype=float).reshape(-1, 3)[:, :2]
+        pca = pouring.principal_axes(xy)
+        if pca is None:
+            continue
+        centroid, eigenvalues, vectors = pca
+        # The maker's centre: the centroid less the offset the timeline measured.
+        centre = centroid - (run.value['off_x'], run.value['off_y'])
+        rel = xy - centre
+        ax.scatter(rel[:, 0], rel[:, 1], s=12, color='#d9a441', edgecolors='#8a6414',
+                   linewidths=0.5)
+        for value, vector, color in zip(eigenvalues[::-1], vectors.T[::-1], ('#c62828',
+                                                                                '#1565c0')):
+            half = 2.0 * math.sqrt(value) * vector
+            ax.plot(*zip(centroid - centre - half, centroid - centre + half), color=color,
+                    linewidth=2)
+        ax.plot(0.0, 0.0, marker='+', color='black', markersize=10)
+        radius = _maker_radius(run.bag)
+        if radius:
+            ax.add_patch(Circle((0.0, 0.0), radius, fill=False, color='#555555'))
+            ax.set_xlim(-1.05 * radius, 1.05 * radius)
+            ax.set_ylim(-1.05 * radius, 1.05 * radius)
+        ax.set_aspect('equal')
+        ax.set_xlabel('x [m]')
+        ax.set_ylabel('y [m]')
+        ax.set_title(f'{exp.describe(run.key)}\n{len(xy)} particles, roundness '
+                     f'{run.value["round"]:.2f}', fontsize=9)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _maker_radius(bag: str) -> float | None:
+    """The radius of the pancake maker in the scenario a bag recorded."""
+    from projection_server.bags import read_bag, TOPICS
+
+    for _, _, info in read_bag(bag, [TOPICS['info']]):
+        for entity in json.loads(info.scenario_json)['entities']:
+            if entity['class'] == 'pancake_maker':
+                return float(entity['properties']['radius'])
+    return None
 
 
 def _layout(result: Result) -> tuple[list[tuple[float, str]], list[tuple[float, str]]]:

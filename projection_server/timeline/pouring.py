@@ -24,6 +24,7 @@ __all__ = [
     'centroid_offset',
     'in_vessel',
     'on_disc',
+    'principal_axes',
     'reached_level',
     'roundness',
 ]
@@ -86,14 +87,24 @@ def centroid_offset(xy: np.ndarray, centre: Sequence[float]) -> tuple[float, flo
     return float(mean[0] - centre[0]), float(mean[1] - centre[1])
 
 
-def roundness(xy: np.ndarray) -> float | None:
-    """Second over first eigenvalue of the covariance of the points ``xy`` (n, 2): 1 for a
-    round patch, 0 for a line; None with fewer than two points."""
+def principal_axes(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Centroid, eigenvalues (ascending) and unit eigenvectors (columns) of the covariance
+    of the points ``xy`` (n, 2): the PCA of a particle configuration (the paper's Fig. 6);
+    None with fewer than two points."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     if len(xy) < 2:
         return None
-    eigenvalues = np.linalg.eigvalsh(np.cov(xy, rowvar=False, bias=True))
-    largest = float(eigenvalues[-1])
-    if largest <= 0.0:   # all points at one place: no direction stands out
+    eigenvalues, vectors = np.linalg.eigh(np.cov(xy, rowvar=False, bias=True))
+    return xy.mean(axis=0), np.maximum(eigenvalues, 0.0), vectors
+
+
+def roundness(xy: np.ndarray) -> float | None:
+    """Second over first eigenvalue of the covariance of the points ``xy`` (n, 2): 1 for a
+    round patch, 0 for a line; None with fewer than two points."""
+    axes = principal_axes(xy)
+    if axes is None:
+        return None
+    _, eigenvalues, _ = axes
+    if eigenvalues[-1] <= 0.0:   # all points at one place: no direction stands out
         return 1.0
-    return float(max(eigenvalues[0], 0.0) / largest)
+    return float(eigenvalues[0] / eigenvalues[-1])

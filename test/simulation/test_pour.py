@@ -186,3 +186,25 @@ def test_the_positions_of_the_particles_on_the_maker_are_in_the_timeline(pour):
     assert offset.tolist() == pytest.approx(
         [measure(timeline, 'centroid_offset_x', 'pancake_maker1'),
          measure(timeline, 'centroid_offset_y', 'pancake_maker1')])
+
+
+def test_principal_axes_of_a_line_point_along_it():
+    t = np.linspace(-1.0, 1.0, 21)
+    centroid, eigenvalues, vectors = pouring.principal_axes(np.c_[t + 2.0, t])
+    assert centroid.tolist() == pytest.approx([2.0, 0.0])
+    assert eigenvalues[0] == pytest.approx(0.0, abs=1e-12) and eigenvalues[1] > 0
+    assert abs(vectors[:, 1] @ np.array([1.0, 1.0]) / math.sqrt(2)) == pytest.approx(1.0)
+    assert pouring.principal_axes(np.zeros((1, 2))) is None
+
+
+def test_the_figure_6_plot_is_drawn_from_a_pours_bag(pour, tmp_path):
+    from projection_server.reproduce.experiments import Run, TABLE_II_POURING
+    from projection_server.reproduce.report import pca_png
+    timeline = pour(2.14, 1.0, 0.0)
+    value = {'pan': on_maker(timeline),
+             'off_x': measure(timeline, 'centroid_offset_x', 'pancake_maker1'),
+             'off_y': measure(timeline, 'centroid_offset_y', 'pancake_maker1'),
+             'round': measure(timeline, 'roundness', 'pancake_maker1')}
+    run = Run((0.0, 1.0, 2.14), value, timeline['meta']['bag'], 4.0, [], 1.0)
+    png = pca_png(TABLE_II_POURING, [run], tmp_path / 'pca.png')
+    assert png.read_bytes().startswith(b'\x89PNG\r\n\x1a\n') and png.stat().st_size > 5000
