@@ -98,3 +98,16 @@ def test_after_the_break_the_egg_is_drawn_broken(scene):
     assert 'egg1' in scene.broken_at(scene.duration)
     image = render_frame(scene, scene.duration, target='egg1', width=240, height=180)
     assert _egg_pixels(image, BROKEN_COLOR[:3]) > 20
+
+
+def test_key_times_are_the_events_and_evenly_spaced_frames_where_there_are_none():
+    from projection_server.reproduce.experiments import Event
+    from projection_server.reproduce.render import key_times
+    slip = Event('slip', 'slip(egg1)', 2.0, 2.0)
+    grasp = Event('grasp', 'grasp(egg1)', 1.0, 1.0)
+    assert key_times([slip, grasp], 4.0, minimum=3) == [
+        (0.0, 'start'), (1.0, 'grasp(egg1)'), (2.0, 'slip(egg1)'), (4.0, 'end')]
+    # A pour has no events: frames fill the longest gaps.
+    assert [t for t, _ in key_times([], 4.0)] == [0.0, 1.0, 2.0, 4.0]
+    assert key_times([], 4.0)[1] == (1.0, '1.0 s')
+    assert key_times([], 0.05) == [(0.0, 'start')]

@@ -205,11 +205,12 @@ def render_frame(scene: BagScene, t: float, *, target: str | None = None,
 
 
 def key_times(events: Sequence[Event], duration: float, *,
-              limit: int = 5) -> list[tuple[float, str]]:
+              limit: int = 5, minimum: int = 4) -> list[tuple[float, str]]:
     """Times worth a frame: the start, each event (interval events at their middle), the end.
 
     Events closer than 0.1 s to an earlier chosen time are merged into its label; at most
-    ``limit`` frames.
+    ``limit`` frames. With fewer than ``minimum`` frames (a pour has no event of its own),
+    evenly spaced ones fill the longest gaps.
     """
     chosen: list[tuple[float, str]] = [(0.0, 'start')]
     for event in sorted(events, key=lambda e: e.start):
@@ -220,6 +221,11 @@ def key_times(events: Sequence[Event], duration: float, *,
             chosen.append((t, event.term))
     if duration - chosen[-1][0] > 0.1:
         chosen.append((duration, 'end'))
+    while 2 <= len(chosen) < min(minimum, limit):
+        gaps = [b[0] - a[0] for a, b in zip(chosen, chosen[1:])]
+        i = gaps.index(max(gaps))   # the longest gap, the earliest of equal ones
+        t = chosen[i][0] + gaps[i] / 2
+        chosen.insert(i + 1, (t, f'{t:.1f} s'))
     return chosen
 
 
