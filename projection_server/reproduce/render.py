@@ -225,7 +225,7 @@ def key_times(events: Sequence[Event], duration: float, *,
         gaps = [b[0] - a[0] for a, b in zip(chosen, chosen[1:])]
         i = gaps.index(max(gaps))   # the longest gap, the earliest of equal ones
         t = chosen[i][0] + gaps[i] / 2
-        chosen.insert(i + 1, (t, f'{t:.1f} s'))
+        chosen.insert(i + 1, (t, ''))
     return chosen
 
 
@@ -240,7 +240,7 @@ def render_strip(scene: BagScene, times: Sequence[tuple[float, str]], path: str 
     fig, axes = plt.subplots(1, len(frames), figsize=(3.2 * len(frames), 2.8), squeeze=False)
     for ax, image, (t, label) in zip(axes[0], frames, times):
         ax.imshow(image)
-        ax.set_title(f't = {t:.2f} s\n{label}', fontsize=9)
+        ax.set_title(f't = {t:.2f} s' + (f'\n{label}' if label else ''), fontsize=9)
         ax.axis('off')
     if caption:
         fig.suptitle(caption, fontsize=11)
