@@ -351,7 +351,7 @@ TABLE_III_POURED_PANCAKE = Experiment(
     paper=paper.TABLE_III,
     sim_timeout=600.0,
     cols='angle',
-    showcases=(Showcase({'angle': 0.3}, 'angle 0.3: the poured pancake mid-flip', 'pancake1'),),
+    showcases=(Showcase({'angle': 0.1}, 'angle 0.1: the poured pancake mid-flip', 'pancake1'),),
     setup=('make_projection(pouring, pour, [(_, angle, [2.14]), (_, time, [0.5]), '
            '(_, position, [0.0])], 600.0, PourTL),\n'
            'quantity(particles_on_positions(pancake_maker1), Points, PourTL),\n'
