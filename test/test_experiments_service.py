@@ -65,6 +65,28 @@ def test_pouring_at_a_larger_angle_puts_more_on_the_pan_and_a_centred_pour_lands
         assert math.hypot(s['X'], s['Y']) < radius, s
 
 
+def test_a_query_selects_the_pour_with_most_mix_on_the_pan_and_no_spill(call):
+    grid = '[(A, angle, [1.84, 2.14]), (T, time, [1.0]), (P, position, [-0.09, 0.0])]'
+    measured = ask(call, f'''
+        make_projection(pouring, pour, {grid}, TL),
+        quantity(particles_on(pancake_maker1), N, TL),
+        quantity(particles_spilled(pancake_mix1), S, TL),
+        ( occurs(spill(pancake_mix1), _, TL) -> Spill = yes ; Spill = no )''')
+    assert len(measured) == 4
+    assert all((s['S'] > 0) == (s['Spill'] == 'yes') for s in measured)
+    assert any(s['Spill'] == 'yes' for s in measured)   # the pile near the edge runs over
+    (best,) = ask(call, f'''
+        aggregate_all(max(N, A-P),
+                      ( make_projection(pouring, pour, {grid}, TL),
+                        \\+ occurs(spill(_), _, TL),
+                        quantity(particles_on(pancake_maker1), N, TL) ),
+                      max(Most, Angle-Position))''')
+    dry = [s for s in measured if s['Spill'] == 'no']
+    top = max(dry, key=lambda s: s['N'])
+    assert best['Most'] == top['N']
+    assert (best['Angle'], best['Position']) == (top['A'], top['P'])
+
+
 def test_turning_in_table_iiis_form_is_ok_at_a_small_angle_and_fails_at_a_large_one(call):
     sols = ask(call, '''
         make_projection(turning, turn_pancake, [(A, angle, [0.1, 0.9])], TL),
