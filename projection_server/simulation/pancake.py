@@ -18,18 +18,20 @@ Two layouts (the scenario's ``model``):
 * ``"particles"``, built by the knowledge base's object model factory from poured particles:
   one sphere (diameter = ``thickness``) per offset of ``particles``, joined along
   ``joints`` (``[parent, child]`` pairs of a tree, parent < child; index 0 is the seed).
+  Beyond :data:`MAX_SEGMENTS` particles, connected groups of them form one segment each
+  (:func:`particles_layout`).
 
 The joints are angular springs (:class:`PancakeSprings`): before every physics step each
 joint's servo towards the flat rest shape may apply at most ``joint_stiffness * angle +
 joint_damping * angular speed``. The constraint solver applies that bounded torque
 implicitly, so the stiff springs of the knowledge base (0.05 N m/rad on segments of a few
 grams) stay stable at Bullet's 240 Hz where explicit spring torques would not. Masses are
-shared out by segment area (rings) or equally (particles).
+shared out by segment area (rings) or by particles (particles).
 
 Orientation reference: the two segments named :data:`REFERENCE_LINKS` lie on the rim (rings:
-ring ``ring_count`` at angle 0 and a quarter turn further; particles: the segment farthest
-from the seed and the one most nearly a quarter turn from it, counter-clockwise seen from
-above), so that ``(a - c) x (b - c)`` with ``c`` the root's position is the pancake's upper
+ring ``ring_count`` at angle 0 and a quarter turn further; particles: the segment whose
+joint is farthest from the seed and the one most nearly a quarter turn from it,
+counter-clockwise seen from above), so that ``(a - c) x (b - c)`` with ``c`` the root's position is the pancake's upper
 side normal (see :mod:`projection_server.timeline.turning`).
 """
 
