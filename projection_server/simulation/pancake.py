@@ -51,7 +51,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['PancakeSprings', 'REFERENCE_LINKS', 'Segment', 'build_pancake',
+__all__ = ['MAX_SEGMENTS', 'PancakeSprings', 'REFERENCE_LINKS', 'Segment', 'build_pancake',
            'particles_layout', 'rings_layout']
 
 REFERENCE_LINKS = ('rim_a', 'rim_b')
