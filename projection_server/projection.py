@@ -1,16 +1,20 @@
-"""Entry point of the simulation side for Prolog: ``simulate``, ``submit``, ``programs``.
+"""Entry point of the simulation side for Prolog: ``simulate``, ``timeline``, ``prefetch``.
 
-One process-wide :class:`~projection_server.simulation.pool.WorkerPool`, created on first
-use with the settings given to :func:`configure` (default bag directory: the environment
+One process-wide worker backend (:mod:`projection_server.workers`), created on first use
+with the settings given to :func:`configure` (default bag directory: the environment
 variable ``PROJECTION_SERVER_BAG_DIR``, else ``~/.cache/projection_server/bags``).
 
     >>> path = simulate(scenario, 'grasp_object', {'force': 5.0, 'position': 0.0}, 60.0)
-    >>> timeline = translate_bag(path)   # projection_server.timeline.translate
+    >>> timeline(path)['events']
+
+The worker that ran a projection also made its timeline; :func:`simulate` keeps it until
+:func:`timeline` hands it over (once), so the bag is read back only for older logs.
 """
 
 from __future__ import annotations
 
 import atexit
+from collections import OrderedDict
 import os
 from pathlib import Path
 import threading
@@ -19,27 +23,39 @@ from typing import Any, TYPE_CHECKING
 from projection_server.simulation import programs as _programs
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.job import Job
-from projection_server.simulation.pool import Retention, WorkerPool
+from projection_server.workers import create_backend, Retention
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
     from concurrent.futures import Future
 
+    from projection_server.workers import ProjectionResult, WorkerBackend
+
 __all__ = [
     'ProjectionError',
+    'cancel',
     'configure',
     'default_bag_dir',
     'prefetch',
     'programs',
+    'project',
     'shutdown',
     'simulate',
     'submit',
+    'timeline',
     'workers',
 ]
 
+_POLL = 1.0   # s between checks that the backend still runs while waiting for a result
+
 _lock = threading.Lock()
-_pool: WorkerPool | None = None
-_config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None}
+_backend: WorkerBackend | None = None
+_config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None,
+                           'backend': 'local'}
+# Timelines of finished projections not yet handed to Prolog, by bag path (bounded: a
+# query that never asks for its timelines must not grow the process).
+_timelines: OrderedDict[str, dict[str, Any]] = OrderedDict()
+_KEEP_TIMELINES = 64
 
 
 def default_bag_dir() -> Path:
@@ -51,68 +67,109 @@ def default_bag_dir() -> Path:
 
 
 def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None = None,
-              retention: Retention | Mapping[str, Any] | None = None) -> None:
-    """Set where bags go, how many workers run projections and how many bags are kept.
+              retention: Retention | Mapping[str, Any] | None = None,
+              backend: str | None = None) -> None:
+    """Set where bags go, how many workers run projections, how many bags are kept and
+    which worker backend runs them (``local``).
 
     Arguments left as None keep their current value. ``retention`` is a
-    :class:`~projection_server.simulation.pool.Retention` or a dict with ``max_bags`` and
-    ``max_bytes``. A running pool is closed; the next projection starts a new one.
+    :class:`~projection_server.workers.Retention` or a dict with ``max_bags`` and
+    ``max_bytes``. A running backend is closed; the next projection starts a new one.
     """
-    global _pool
+    global _backend
     with _lock:
         if workers is not None and (not isinstance(workers, int) or workers < 1):
             raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
-        updates = {'bag_dir': bag_dir, 'workers': workers,
+        updates = {'bag_dir': bag_dir, 'workers': workers, 'backend': backend,
                    'retention': Retention.of(retention) if retention is not None else None}
         _config.update({k: v for k, v in updates.items() if v is not None})
-        old, _pool = _pool, None
+        old, _backend = _backend, None
     if old is not None:
         old.close()
 
 
-def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
-             timeout: float) -> str:
-    """Run one projection in a supervised worker and return the path of its bag.
+def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
+            timeout: float, owner: str | None = None) -> dict[str, Any]:
+    """Run one projection and return ``{'bag': path, 'timeline': timeline or None}``.
 
-    ``timeout`` is the wall-clock limit of the simulation in seconds. An identical
-    projection made before (same scenario, program, parameters, settings and code) returns
-    the existing bag.
+    The timeline (the dict of ``docs/contracts.md``) is the one the worker made from its
+    samples; it is None when the bag was found in the bag directory, made by an earlier
+    process (``translate_bag`` reads it). ``timeout`` is the wall-clock limit of the
+    simulation in seconds. An identical projection made before (same scenario, program,
+    parameters, settings and code) returns the existing bag.
 
     Raises:
         ProjectionError: with ``kind`` ``invalid_scenario``, ``unknown_program``,
-            ``invalid_parameters``, ``timeout``, ``worker_crashed``, ``simulation_failed``...
+            ``invalid_parameters``, ``timeout``, ``worker_crashed``, ``simulation_failed``,
+            ``cancelled``...
     """
-    job = Job.checked(scenario, program, params)
-    return _get_pool().run(job, timeout)
+    result = _wait(submit(scenario, program, params, timeout, owner))
+    return {'bag': result.bag, 'timeline': result.timeline}
+
+
+def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
+             timeout: float, owner: str | None = None) -> str:
+    """Like :func:`project`, but return the path of the bag and keep the timeline for
+    :func:`timeline`."""
+    result = _wait(submit(scenario, program, params, timeout, owner))
+    if result.timeline is not None:
+        with _lock:
+            _timelines[result.bag] = result.timeline
+            while len(_timelines) > _KEEP_TIMELINES:
+                _timelines.popitem(last=False)
+    return result.bag
+
+
+def timeline(bag: str | os.PathLike[str]) -> dict[str, Any]:
+    """The timeline of the projection logged in ``bag``: the one its worker made, if
+    :func:`simulate` has it, else read from the bag.
+
+    Raises:
+        ProjectionError: kind ``bag_error`` if the bag cannot be read or is not a projection.
+    """
+    with _lock:
+        made = _timelines.pop(os.fspath(bag), None)
+    if made is not None:
+        return made
+    from projection_server.timeline.translate import translate_bag
+
+    return translate_bag(bag)
 
 
 def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
-           timeout: float) -> Future[str]:
-    """Like :func:`simulate`, but return at once with a future of the bag path.
+           timeout: float, owner: str | None = None) -> Future[ProjectionResult]:
+    """Like :func:`project`, but return at once with a future of the result.
 
     For running a query's parametrizations ahead of Prolog's backtracking; a later
-    :func:`simulate` of the same projection waits for the same future.
+    :func:`project` of the same projection waits for the same future.
     """
     job = Job.checked(scenario, program, params)
-    return _get_pool().submit(job, timeout)
+    return _get_backend().submit(job, timeout, owner)
 
 
 def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
-             timeout: float) -> int:
+             timeout: float, owner: str | None = None) -> int:
     """Queue projections that a query will probably ask for next; return how many.
 
     Lets the workers run a query's next parametrizations while Prolog is still
-    evaluating the current one. Invalid ones are skipped here: :func:`simulate`
+    evaluating the current one. Invalid ones are skipped here: :func:`project`
     reports their errors when (and if) they are asked for.
     """
     queued = 0
     for params in params_list:
         try:
-            submit(scenario, program, params, timeout)
+            submit(scenario, program, params, timeout, owner)
             queued += 1
         except ProjectionError:
             pass
     return queued
+
+
+def cancel(owner: str) -> int:
+    """Cancel the unfinished projections that only ``owner`` asked for; how many."""
+    with _lock:
+        backend = _backend
+    return backend.cancel(owner) if backend is not None else 0
 
 
 def workers() -> int:
@@ -127,21 +184,32 @@ def programs() -> list[dict[str, Any]]:
 
 
 def shutdown() -> None:
-    """Stop the process-wide pool (also done at exit)."""
-    global _pool
+    """Stop the process-wide backend (also done at exit)."""
+    global _backend
     with _lock:
-        old, _pool = _pool, None
+        old, _backend = _backend, None
     if old is not None:
         old.close()
 
 
-def _get_pool() -> WorkerPool:
-    global _pool
+def _wait(future: Future[ProjectionResult]) -> ProjectionResult:
+    while True:
+        try:
+            return future.result(timeout=_POLL)
+        except TimeoutError:
+            with _lock:
+                if _backend is None:
+                    raise ProjectionError('pool_closed', 'the projection backend was closed')
+
+
+def _get_backend() -> WorkerBackend:
+    global _backend
     with _lock:
-        if _pool is None:
-            _pool = WorkerPool(_config['bag_dir'] or default_bag_dir(),
-                               workers=_config['workers'], retention=_config['retention'])
-        return _pool
+        if _backend is None:
+            _backend = create_backend(_config['backend'],
+                                      _config['bag_dir'] or default_bag_dir(),
+                                      _config['workers'], retention=_config['retention'])
+        return _backend
 
 
 atexit.register(shutdown)

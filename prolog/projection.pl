@@ -35,9 +35,11 @@ nested loops. Parameters the list leaves out take the program's default.
 While Prolog evaluates one combination, the next ones (as many as there are
 simulation workers) are already being simulated.
 
-make_projection/5 is simulate/5 followed by translate/2. simulate/5 starts a
-supervised PyBullet worker (projection_server.projection), which writes one
-ROS bag per projection; translate/2 reads a bag into a timeline (timeline.pl).
+make_projection/5 is simulate/5 followed by translate/2. simulate/5 runs the
+projection in a PyBullet worker (projection_server.projection), which writes one
+ROS bag per projection and makes its timeline from the samples in memory;
+translate/2 stores that timeline (timeline.pl) in one call, or reads an older
+bag into one.
 An identical projection (same scenario description, program, parameters and
 physics settings) reuses the bag and the timeline made before.
 
@@ -184,7 +186,9 @@ projection_error(Class, Value) :-
 
 %!  translate(+Log, -Timeline) is det.
 %
-%   Timeline is the timeline of the bag Log.  Translating the same bag again
+%   Timeline is the timeline of the bag Log: the one the simulation worker
+%   made from its samples when this process just made the bag, else read
+%   from the bag (the same timeline).  Translating the same bag again
 %   gives the same timeline, as long as it was not removed.  Timeline becomes
 %   the query's current timeline: holds/2, occurs/2, typeOf/2 and objOf/2
 %   (the paper's section II form) evaluate on it until the next translation
@@ -206,7 +210,7 @@ translate_(Log0, Timeline) :-
     (   log_timeline(Log, Timeline0), timeline_exists(Timeline0)
     ->  Timeline = Timeline0
     ;   exists_directory(Log)
-    ->  catch(py_call('projection_server.timeline.translate':translate_bag(Log), Data),
+    ->  catch(py_call('projection_server.projection':timeline(Log), Data),
               error(python_error(Class, Value), _),
               projection_error(Class, Value)),
         with_mutex(projection_translate,

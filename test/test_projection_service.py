@@ -80,6 +80,24 @@ def test_the_same_projection_translates_to_the_same_timeline_again(call):
     assert s['EA'] == s['EB'] and s['FA'] == s['FB']
 
 
+def test_translating_the_bag_gives_the_timeline_the_worker_made(call):
+    r, sols = ask(call, '''
+        make_projection(grasping, grasp_object, [(_, force, [11]), (_, position, [0.02])], A),
+        timeline_property(A, meta(M)), get_dict(bag, M, Log),
+        findall(E-T, occurs(E, T, A), EA), findall(F-T, holds(F, T, A), FA),
+        findall(Q-V, quantity(Q, V, A), QA),
+        timeline_remove(A),
+        translate(Log, B),
+        findall(E-T, occurs(E, T, B), EB), findall(F-T, holds(F, T, B), FB),
+        findall(Q-V, quantity(Q, V, B), QB)''', mode=Q.ONCE)
+    assert r.ok, r.message
+    s = sols[0]
+    assert s['A'] != s['B']
+    assert s['EA'] == s['EB'] and s['FA'] == s['FB'] and s['QA'] == s['QB']
+    assert len(s['FA']) > 3 and len(s['QA']) > 2
+    assert {'functor': 'break', 'args': ['egg1']} in [e['args'][0] for e in s['EA']]
+
+
 def test_simulate_leaves_a_bag_with_poses_and_contacts(call):
     from rosbags.highlevel import AnyReader
     from pathlib import Path

@@ -2,8 +2,8 @@
 
 Map of the package:
 
-* :mod:`.pool`: supervised worker processes, the bag cache and retention.
-* :mod:`.runner`: one projection in the calling process (what a worker runs).
+* :mod:`.runner`: one projection in the calling process (what a worker runs); the workers
+  themselves are in :mod:`projection_server.workers`.
 * :mod:`.scenario`: the checked form of a scenario description.
 * :mod:`.world`: the builder from a scenario to a PyBullet world; :mod:`.assets` its data.
 * :mod:`.physics`: the world by entity names, the gripper, named queries.
@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.job import Job
-from projection_server.simulation.pool import Retention, WorkerPool
 from projection_server.simulation.settings import load_settings, Settings
 
-__all__ = ['Job', 'ProjectionError', 'Retention', 'Settings', 'WorkerPool', 'load_settings']
+__all__ = ['Job', 'ProjectionError', 'Settings', 'load_settings']

@@ -1,13 +1,16 @@
-"""One projection, start to end, in the calling process: world, program, monitoring, bag.
+"""One projection, start to end, in the calling process: world, program, monitoring, bag,
+and the timeline made from the samples in memory.
 
-Runs inside a pool worker (:mod:`projection_server.simulation.pool`); it is also callable
-directly, e.g. from a debugger.
+A :class:`Simulator` keeps one DIRECT-mode PyBullet client for many projections (what a
+pool worker does, :mod:`projection_server.workers.local.process`); each projection still
+builds a fresh world in it and sets every engine parameter it depends on. The function
+:func:`run_projection` is one projection with a client of its own, e.g. from a debugger.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
@@ -24,30 +27,43 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.simulation.settings import Settings
 
-__all__ = ['run_projection']
+__all__ = ['Simulator', 'run_projection']
 
 
-def run_projection(job: Job, settings: Settings, bag_path: Path) -> None:
-    """Simulate ``job`` in a fresh DIRECT-mode world and log it into a new bag at ``bag_path``.
+class Simulator:
+    """A warm PyBullet client that runs projections one after the other."""
 
-    The control program runs every ``steps_per_control`` physics steps and the monitor samples
-    every ``steps_per_log`` steps, from the first step until the program's duration.
-    """
-    import pybullet
-    from pybullet_utils.bullet_client import BulletClient
+    def __init__(self) -> None:
+        import pybullet
+        from pybullet_utils.bullet_client import BulletClient
 
-    scenario = parse_scenario(job.scenario)
-    program = get_program(job.program)
-    key = job.key(settings)
-    client = BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        physics = build_world(client, scenario, settings)
+        from projection_server.bags import typestore
+        from projection_server.timeline import translate   # noqa: F401 (imported once here)
+
+        typestore()   # message types are registered once per process
+        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+
+    def run(self, job: Job, settings: Settings, bag_path: Path) -> dict[str, Any]:
+        """Simulate ``job`` in a fresh world, log it into a new bag at ``bag_path`` and
+        return its timeline (``translate_bag(bag_path)`` gives the same).
+
+        The control program runs every ``steps_per_control`` physics steps and the monitor
+        samples every ``steps_per_log`` steps, from the first step until the program's
+        duration.
+        """
+        from projection_server.timeline.translate import translate_messages
+
+        scenario = parse_scenario(job.scenario)
+        program = get_program(job.program)
+        key = job.key(settings)
+        physics = build_world(self.client, scenario, settings)
         task = program.create(physics, scenario, dict(job.params),
                               np.random.default_rng(int(key[:16], 16)))
         rate = settings.physics.rate_hz
         control, log = settings.control.steps_per_control, settings.control.steps_per_log
         steps = math.ceil(task.duration * rate - 1e-9)
-        with BagWriter(bag_path) as bag:
+        with BagWriter(bag_path) as writer:
+            bag = _Recording(writer)
             monitor = Monitor(physics, bag)
             monitor.start({
                 'job_key': key, 'scenario_name': scenario.name,
@@ -61,5 +77,31 @@ def run_projection(job: Job, settings: Settings, bag_path: Path) -> None:
                 physics.step()
                 if physics.step_count % log == 0:
                     monitor.sample()
+        return translate_messages(bag.messages, bag_path)
+
+    def close(self) -> None:
+        self.client.disconnect()
+
+
+def run_projection(job: Job, settings: Settings, bag_path: Path) -> dict[str, Any]:
+    """:meth:`Simulator.run` with a PyBullet client of its own."""
+    simulator = Simulator()
+    try:
+        return simulator.run(job, settings, bag_path)
     finally:
-        client.disconnect()
+        simulator.close()
+
+
+class _Recording:
+    """A bag writer that also keeps what it wrote, for the timeline."""
+
+    def __init__(self, writer: BagWriter):
+        self._writer = writer
+        self.messages: list[tuple[str, int, Any]] = []
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._writer, name)
+
+    def write(self, topic: str, message: Any, t_ns: int) -> None:
+        self._writer.write(topic, message, t_ns)
+        self.messages.append((topic, int(t_ns), message))

@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 import json
 import math
 import os
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
@@ -68,8 +68,14 @@ from projection_server.simulation.settings import TimelineSettings
 from projection_server.timeline import pouring, turning
 from projection_server.timeline.intervals import fluent_intervals, holds_at, Interval
 
-__all__ = ['translate_bag']
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
+__all__ = ['translate_bag', 'translate_messages']
+
+_TOPICS = [TOPICS[name] for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
+                                     'objects', 'markers')]
+_SAMPLED = {TOPICS[name] for name in ('tf', 'contacts', 'gripper', 'objects')}
 
 
 @dataclass
@@ -88,50 +94,72 @@ class _Sample:
 def translate_bag(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The timeline of the projection logged in the bag at ``path``.
 
+    For logs on disk; a worker makes the timeline of its own projection from the messages
+    it has in memory (:func:`translate_messages`), with the same result.
+
     Raises:
         ProjectionError: kind ``bag_error`` if the bag cannot be read or is not a projection.
     """
-    info, samples = _read(path)
-    settings = TimelineSettings(**json.loads(info.settings_json)['timeline'])
-    timeline = _Timeline(samples, settings)
-    fluids = _Fluids(samples, info.scenario_json)
+    return translate_messages(read_bag(path, _TOPICS), path)
+
+
+def translate_messages(messages: Iterable[tuple[str, int, Any]],
+                       bag: str | os.PathLike[str]) -> dict[str, Any]:
+    """The timeline of a projection from its bag messages ``(topic, t_ns, message)`` in the
+    order they were written; ``bag`` is the bag's path, recorded in the timeline's meta.
+
+    Raises:
+        ProjectionError: kind ``bag_error`` if the messages are not a projection's.
+    """
+    samples = _Samples()
+    for topic, t_ns, msg in messages:
+        samples.add(topic, t_ns, msg)
+    info, samples_ = samples.finish(bag)
+    settings_json = json.loads(info.settings_json)
+    timeline = _Timeline(samples_, TimelineSettings(**settings_json['timeline']))
+    fluids = _Fluids(samples_, info.scenario_json)
     return {
         'fluents': timeline.fluents(),
         'events': _sorted_events(timeline.events() + fluids.events()),
-        'quantities': timeline.quantities() + fluids.quantities(),
+        'quantities': [[name, args, _plain(value)] for name, args, value
+                       in timeline.quantities() + fluids.quantities()],
         'meta': {
-            'bag': os.fspath(path), 'scenario': info.scenario_name, 'program': info.program,
+            'bag': os.fspath(bag), 'scenario': info.scenario_name, 'program': info.program,
             'params': json.loads(info.parameters_json), 'job_key': info.job_key,
             'code_version': info.code_version,
-            'duration': samples[-1].t if samples else 0.0, 'samples': len(samples),
-            'timeline_settings': json.loads(info.settings_json)['timeline'],
+            'duration': samples_[-1].t if samples_ else 0.0, 'samples': len(samples_),
+            'timeline_settings': settings_json['timeline'],
         },
     }
 
 
-def _read(path: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
-    info = None
-    by_time: dict[int, _Sample] = {}
-    static: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    particles: dict[int, dict[str, np.ndarray]] = {}
-    topics = [TOPICS[name] for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
-                                        'objects', 'markers')]
-    for topic, t_ns, msg in read_bag(path, topics):
+class _Samples:
+    """Collects the monitoring samples of a projection, one message at a time."""
+
+    def __init__(self) -> None:
+        self.info: Any = None
+        self.by_time: dict[int, _Sample] = {}
+        self.static: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.particles: dict[int, dict[str, np.ndarray]] = {}
+
+    def add(self, topic: str, t_ns: int, msg: Any) -> None:
         if topic == TOPICS['info']:
-            info = msg
-            continue
+            self.info = msg
+            return
         if topic == TOPICS['tf_static']:
-            static.update(_poses(msg))
-            continue
+            self.static.update(_poses(msg))
+            return
         if topic == TOPICS['markers']:   # only the particles; they make no sample of their own
             for marker in msg.markers:
                 if marker.ns == PARTICLES_NS:
-                    particles.setdefault(t_ns, {})[marker.text] = np.array(
+                    self.particles.setdefault(t_ns, {})[marker.text] = np.array(
                         [(q.x, q.y, q.z) for q in marker.points], dtype=float).reshape(-1, 3)
-            continue
-        sample = by_time.get(t_ns)
+            return
+        if topic not in _SAMPLED:
+            return
+        sample = self.by_time.get(t_ns)
         if sample is None:
-            sample = by_time[t_ns] = _Sample(t_ns / 1e9)
+            sample = self.by_time[t_ns] = _Sample(t_ns / 1e9)
         if topic == TOPICS['tf']:
             poses = _poses(msg)
             sample.poses.update(poses)
@@ -142,16 +170,27 @@ def _read(path: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
             sample.grippers[msg.name] = msg
         elif topic == TOPICS['objects']:
             sample.objects = {o.name: o for o in msg.objects}
-    if info is None:
-        raise ProjectionError('bag_error', f'{path}: no {TOPICS["info"]} message')
-    for t_ns, fluids in particles.items():
-        if t_ns in by_time:
-            by_time[t_ns].particles = fluids
-    samples = [by_time[t] for t in sorted(by_time)]
-    for sample in samples:
-        for name, pose in static.items():
-            sample.poses.setdefault(name, pose)
-    return info, samples
+
+    def finish(self, bag: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
+        if self.info is None:
+            raise ProjectionError('bag_error', f'{bag}: no {TOPICS["info"]} message')
+        for t_ns, fluids in self.particles.items():
+            if t_ns in self.by_time:
+                self.by_time[t_ns].particles = fluids
+        samples = [self.by_time[t] for t in sorted(self.by_time)]
+        for sample in samples:
+            for name, pose in self.static.items():
+                sample.poses.setdefault(name, pose)
+        return self.info, samples
+
+
+def _plain(value: Any) -> Any:
+    """Numbers as Python's own (in memory they may still be numpy scalars)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, list):
+        return [_plain(v) for v in value]
+    return value
 
 
 def _sorted_events(events: list[list[Any]]) -> list[list[Any]]:

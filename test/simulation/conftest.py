@@ -6,7 +6,7 @@ import copy
 
 import pytest
 
-from projection_server.simulation.pool import WorkerPool
+from projection_server.workers.local import WorkerPool
 
 # The grasping scenario of Kunze et al. (2011), sec. IV-A, in the form of docs/contracts.md.
 # The egg's breaking force (10 N) puts the break between 9 and 11 N at the centre.

@@ -1,4 +1,5 @@
-"""Supervised workers: results, cache, crashes, time limits, retention."""
+"""The local worker backend: results, timelines, cache, crashes, time limits, warm workers,
+cancellation, retention."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ import time
 import pytest
 
 from projection_server.simulation import Job, ProjectionError
-from projection_server.simulation.pool import Retention
+from projection_server.timeline.translate import translate_bag
+from projection_server.workers import Retention, WorkerBackend
 
 
 def job(make_scenario, force, position=0.0):
@@ -23,12 +25,28 @@ def test_a_projection_gives_a_complete_bag_in_the_bag_dir(pool, make_scenario):
     assert not [p for p in pool.bag_dir.iterdir() if p.name.startswith('.tmp-')]
 
 
+def test_the_local_pool_is_a_worker_backend(pool):
+    assert isinstance(pool, WorkerBackend)
+    assert pool.workers == 1
+
+
+def test_the_workers_timeline_is_the_timeline_of_its_bag(pool, make_scenario):
+    result = pool.submit(job(make_scenario, 9.0, 0.02), timeout=60.0).result(timeout=60.0)
+    from_bag = translate_bag(result.bag)
+    assert result.timeline['meta'] == from_bag['meta']
+    for part in ('fluents', 'events', 'quantities'):
+        assert len(result.timeline[part]) == len(from_bag[part])
+        for made, read in zip(result.timeline[part], from_bag[part]):
+            assert made == read
+    assert ['break', ['egg1']] in [e[:2] for e in result.timeline['events']]
+
+
 def test_an_identical_projection_comes_from_the_cache(pool, make_scenario):
     first = pool.run(job(make_scenario, 3.0), timeout=60.0)
     mtime = os.stat(os.path.join(first, 'metadata.yaml')).st_mtime_ns
     started = time.monotonic()
     again = pool.submit(job(make_scenario, 3.0), timeout=60.0)
-    assert again.done() and again.result() == first
+    assert again.done() and again.result().bag == first
     assert time.monotonic() - started < 0.5
     assert os.stat(os.path.join(first, 'metadata.yaml')).st_mtime_ns == mtime
 
@@ -72,12 +90,49 @@ def test_a_bag_does_not_depend_on_earlier_projections_of_its_worker(
     from projection_server.simulation.runner import run_projection
 
     pool.run(job(make_scenario, 9.0, 0.02), timeout=60.0)   # leaves a broken egg behind
+    pid = pool.worker_pids[0]
     path = pool.run(job(make_scenario, 7.0, -0.02), timeout=60.0)
+    assert pool.worker_pids == [pid]   # the same warm worker
     fresh = tmp_path / os.path.basename(path)
     run_projection(job(make_scenario, 7.0, -0.02), pool.settings, fresh)
     name = os.path.basename(path) + '.mcap'
     with open(os.path.join(path, name), 'rb') as a, open(fresh / name, 'rb') as b:
         assert a.read() == b.read()
+
+
+def test_engine_parameters_left_by_anything_before_do_not_reach_a_projection(
+        make_scenario, pool, tmp_path):
+    from projection_server.simulation.runner import run_projection, Simulator
+
+    grasp = job(make_scenario, 7.0, -0.02)
+    fresh = run_projection(grasp, pool.settings, tmp_path / 'fresh' / 'bag')
+    simulator = Simulator()
+    try:
+        # These survive resetSimulation: each projection must set them itself.
+        simulator.client.setPhysicsEngineParameter(
+            fixedTimeStep=0.01, numSubSteps=3, numSolverIterations=7,
+            contactBreakingThreshold=0.05)
+        warm = simulator.run(grasp, pool.settings, tmp_path / 'warm' / 'bag')
+    finally:
+        simulator.close()
+    assert (tmp_path / 'warm' / 'bag' / 'bag.mcap').read_bytes() == (
+        tmp_path / 'fresh' / 'bag' / 'bag.mcap').read_bytes()
+    assert {**warm['meta'], 'bag': ''} == {**fresh['meta'], 'bag': ''}
+    assert [warm[k] for k in ('fluents', 'events')] == [fresh[k] for k in ('fluents', 'events')]
+
+
+def test_a_queued_projection_of_a_cancelled_owner_fails_as_cancelled(pool, make_scenario):
+    running = pool.submit(job(make_scenario, 2.0), timeout=60.0, owner='q/1')
+    queued = pool.submit(job(make_scenario, 2.5), timeout=60.0, owner='q/1')
+    shared = pool.submit(job(make_scenario, 2.6), timeout=60.0, owner='q/1')
+    pool.submit(job(make_scenario, 2.6), timeout=60.0, owner='q/2')
+    assert pool.cancel('q/1') == 2
+    for future in (running, queued):
+        with pytest.raises(ProjectionError) as info:
+            future.result(timeout=60.0)
+        assert info.value.kind == 'cancelled'
+    assert os.path.isdir(shared.result(timeout=60.0).bag)   # q/2 still wants it
+    assert os.path.isdir(pool.run(job(make_scenario, 2.0), timeout=60.0))
 
 
 def test_retention_deletes_the_least_recently_used_bags(tmp_path):

@@ -1,4 +1,5 @@
-"""The entry point for Prolog: simulate() and translate_bag() of docs/contracts.md."""
+"""The entry point for Prolog: simulate(), timeline() and translate_bag() of
+docs/contracts.md."""
 
 from __future__ import annotations
 
@@ -25,6 +26,28 @@ def test_simulate_returns_a_bag_that_translates_to_a_timeline(bag_dir, make_scen
     timeline = translate_bag(path)
     assert ['grasp', ['egg1']] in [e[:2] for e in timeline['events']]
     assert timeline['meta']['params'] == {'force': 5.0, 'position': 0.0}
+
+
+def test_the_timeline_comes_from_the_worker_once_and_then_from_the_bag(
+        bag_dir, make_scenario, monkeypatch):
+    from projection_server.timeline import translate
+
+    path = projection.simulate(make_scenario(), 'grasp_object',
+                               {'force': 11, 'position': 0.0}, 60.0)
+    reads = []
+    monkeypatch.setattr(translate, 'read_bag',
+                        lambda *a: reads.append(a) or _read_bag(*a))
+    made = projection.timeline(path)
+    assert reads == []
+    again = projection.timeline(path)
+    assert len(reads) == 1
+    assert made == again
+
+
+def _read_bag(*args):
+    from projection_server.bags import read_bag
+
+    return read_bag(*args)
 
 
 def test_simulate_rejects_bad_input_before_starting_a_worker(bag_dir, make_scenario):

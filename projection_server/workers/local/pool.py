@@ -1,88 +1,49 @@
-"""Supervised worker processes that run projections, and the cache of finished bags.
+"""The ``local`` backend: supervised worker processes on this machine.
 
 Modelled on Gymnasium's ``AsyncVectorEnv``: each worker is a process of an explicit
 multiprocessing context (``forkserver`` by default: the parent hosts rclpy and Prolog and
-must never be forked) with its own DIRECT-mode PyBullet client, and answers every command
-with ``(result, ok)``; exceptions travel back as :class:`ProjectionError`. Every wait in the
+must never be forked) that keeps one warm DIRECT-mode PyBullet client
+(:mod:`projection_server.workers.local.process`), and answers every command with
+``(result, ok)``; exceptions travel back as :class:`ProjectionError`. Every wait in the
 parent has a time limit. A worker that crashes or runs over its projection's time limit is
 terminated, its projection fails with kind ``worker_crashed`` or ``timeout``, and a new
 worker is started for the next projection. Each projection builds a fresh world.
 
-Bags are named after the projection's content key (:meth:`Job.key`), written under a
-temporary name and renamed into place when complete, so an identical projection is answered
-from the bag directory, also across processes and restarts, and a bag is never overwritten.
-After each new bag the :class:`Retention` policy deletes the least recently used bags.
+The worker translates its projection into a timeline from the samples it has in memory and
+sends it back with the bag, so the parent never reads the bag it just had written. Bags go
+to a :class:`~projection_server.workers.bag_store.BagStore`.
 """
 
 from __future__ import annotations
 
 from concurrent.futures import Future
-from dataclasses import dataclass
-import itertools
+from dataclasses import dataclass, field
 import multiprocessing
 from multiprocessing.connection import wait
-import os
 from pathlib import Path
 import queue
 import shutil
 import threading
-import traceback
 from typing import Any, NoReturn, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.settings import load_settings, Settings
+from projection_server.workers.backend import ProjectionResult
+from projection_server.workers.bag_store import BagStore, Retention, touch
+from projection_server.workers.local.process import worker_main
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
+    import os
 
     from projection_server.simulation.job import Job
 
-__all__ = ['Retention', 'WorkerPool']
+__all__ = ['WorkerPool']
 
-TMP_PREFIX = '.tmp-'
 _POLL = 1.0   # s between liveness checks while waiting for a result
-
-
-@dataclass(frozen=True)
-class Retention:
-    """Keep at most ``max_bags`` bags and ``max_bytes`` bytes (None: no limit)."""
-
-    max_bags: int | None = 1000
-    max_bytes: int | None = 4 * 1024 ** 3
-
-    @classmethod
-    def of(cls, value: Retention | Mapping[str, Any] | None) -> Retention:
-        """From a Retention, a mapping with the same keys (e.g. from Prolog) or None."""
-        if value is None:
-            return cls()
-        if isinstance(value, Retention):
-            return value
-        try:
-            return cls(**dict(value))
-        except TypeError as exc:
-            raise ProjectionError('invalid_settings', f'retention: {exc}') from exc
-
-    def apply(self, bag_dir: Path, keep: Path) -> None:
-        """Delete the least recently used bags of ``bag_dir`` beyond the limits; not ``keep``."""
-        bags = []
-        for entry in bag_dir.iterdir():
-            if entry.name.startswith('.') or not (entry / 'metadata.yaml').is_file():
-                continue
-            try:
-                size = sum(f.stat().st_size for f in entry.iterdir())
-                bags.append((entry.stat().st_mtime_ns, entry.name, size, entry))
-            except FileNotFoundError:   # deleted by another process meanwhile
-                continue
-        bags.sort()
-        count, total = len(bags), sum(b[2] for b in bags)
-        for _, _, size, path in bags:
-            if not ((self.max_bags is not None and count > self.max_bags)
-                    or (self.max_bytes is not None and total > self.max_bytes)):
-                break
-            if path == keep:
-                continue
-            shutil.rmtree(path, ignore_errors=True)
-            count, total = count - 1, total - size
+# Finished results kept for identical submissions (prefetched ones wait here to be asked
+# for); beyond this the oldest go, and their bags answer from the bag directory.
+KEEP_FINISHED = 256
 
 
 @dataclass
@@ -90,15 +51,18 @@ class _Request:
     job: Job
     key: str
     timeout: float
-    future: Future[str]
+    future: Future[ProjectionResult]
+    owners: set[str | None] = field(default_factory=set)
+    cancelled: bool = False
 
 
 class WorkerPool:
     """``workers`` supervised projection processes writing bags into ``bag_dir``.
 
     ``submit`` queues a projection and returns a :class:`~concurrent.futures.Future` of its
-    bag path; identical projections (same key) share one future and one bag. ``run`` is
-    submit and wait. Close the pool (or use it as a context manager) to stop the workers.
+    :class:`ProjectionResult`; identical projections (same key) share one future and one
+    bag. ``run`` is submit and wait. Close the pool (or use it as a context manager) to
+    stop the workers. Implements :class:`~projection_server.workers.backend.WorkerBackend`.
     """
 
     def __init__(self, bag_dir: str | os.PathLike[str], workers: int = 1,
@@ -107,18 +71,15 @@ class WorkerPool:
                  start_method: str = 'forkserver', startup_timeout: float = 60.0):
         if not isinstance(workers, int) or workers < 1:
             raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
-        self.bag_dir = Path(bag_dir).expanduser()
-        self.bag_dir.mkdir(parents=True, exist_ok=True)
+        self.store = BagStore(bag_dir, retention)
+        self.bag_dir = self.store.bag_dir
         self.settings = settings if settings is not None else load_settings()
-        self.retention = Retention.of(retention)
         self.startup_timeout = startup_timeout
         self._context = multiprocessing.get_context(start_method)
         self._queue: queue.Queue[_Request | None] = queue.Queue()
-        self._futures: dict[str, Future[str]] = {}
+        self._requests: dict[str, _Request] = {}
         self._lock = threading.Lock()
         self._closed = False
-        self._counter = itertools.count()
-        self._remove_stale_tmp()
         self._slots = [_Slot(self, i) for i in range(workers)]
 
     def __enter__(self) -> WorkerPool:
@@ -128,11 +89,20 @@ class WorkerPool:
         self.close()
 
     @property
+    def workers(self) -> int:
+        return len(self._slots)
+
+    @property
+    def retention(self) -> Retention:
+        return self.store.retention
+
+    @property
     def worker_pids(self) -> list[int | None]:
         """Process ids of the running workers (None where none is running)."""
         return [slot.pid for slot in self._slots]
 
-    def submit(self, job: Job, timeout: float) -> Future[str]:
+    def submit(self, job: Job, timeout: float,
+               owner: str | None = None) -> Future[ProjectionResult]:
         """Queue ``job``; its simulation may take ``timeout`` seconds of wall-clock time.
 
         The time limit counts from when a worker takes the job, not from submission.
@@ -143,19 +113,24 @@ class WorkerPool:
         with self._lock:
             if self._closed:
                 raise ProjectionError('pool_closed', 'the projection pool is closed')
-            future = self._futures.get(key)
-            if future is not None and (not future.done() or _usable(future)):
-                if future.done():
-                    _touch(Path(future.result()))
+            request = self._requests.get(key)
+            if request is not None and (not request.future.done()
+                                        or _usable(request.future)):
+                if request.future.done():
+                    touch(Path(request.future.result().bag))
+                else:
+                    request.owners.add(owner)
+                return request.future
+            future: Future[ProjectionResult] = Future()
+            request = _Request(job, key, float(timeout), future, {owner})
+            self._requests.pop(key, None)
+            self._requests[key] = request
+            self._forget_finished()
+            final = self.store.existing(job, key)
+            if final is not None:
+                future.set_result(ProjectionResult(str(final)))
                 return future
-            future = Future()
-            self._futures[key] = future
-            final = self.bag_dir / self._bag_name(job, key)
-            if final.is_dir():
-                _touch(final)
-                future.set_result(str(final))
-                return future
-            self._queue.put(_Request(job, key, float(timeout), future))
+            self._queue.put(request)
         return future
 
     def run(self, job: Job, timeout: float) -> str:
@@ -167,10 +142,33 @@ class WorkerPool:
         future = self.submit(job, timeout)
         while True:
             try:
-                return future.result(timeout=_POLL)
+                return future.result(timeout=_POLL).bag
             except TimeoutError:
                 if not any(slot.alive for slot in self._slots):
                     raise ProjectionError('pool_closed', 'no worker supervisor is running')
+
+    def cancel(self, owner: str) -> int:
+        """Cancel the unfinished projections that only ``owner`` asked for.
+
+        A queued one is dropped, a running one stops its worker (which is replaced); their
+        futures fail with kind ``cancelled``.
+        """
+        cancelled = 0
+        with self._lock:
+            for request in list(self._requests.values()):
+                if request.future.done() or request.owners != {owner}:
+                    continue
+                request.cancelled = True
+                cancelled += 1
+                if request.future.running():   # stop the worker that runs it
+                    for slot in self._slots:
+                        if slot.request is request:
+                            slot.terminate_worker()
+                else:   # queued: its slot skips it
+                    request.future.set_running_or_notify_cancel()
+                    self._fail(request, ProjectionError(
+                        'cancelled', f'projection {request.key[:12]} was cancelled'))
+        return cancelled
 
     def close(self) -> None:
         """Stop the workers; queued projections fail with kind ``pool_closed``."""
@@ -183,7 +181,8 @@ class WorkerPool:
                 request = self._queue.get_nowait()
             except queue.Empty:
                 break
-            if request is not None and request.future.set_running_or_notify_cancel():
+            if request is not None and not request.future.done() \
+                    and request.future.set_running_or_notify_cancel():
                 request.future.set_exception(
                     ProjectionError('pool_closed', 'the projection pool was closed'))
         for _ in self._slots:
@@ -193,46 +192,17 @@ class WorkerPool:
         for slot in self._slots:
             slot.join(10.0)
 
-    # --- used by the slots --------------------------------------------------------------
-    def _tmp_dir(self) -> Path:
-        """A new private directory for writing a bag under its final name."""
-        tmp = self.bag_dir / f'{TMP_PREFIX}{os.getpid()}-{next(self._counter)}'
-        tmp.mkdir()
-        return tmp
+    def _forget_finished(self) -> None:
+        finished = [key for key, r in self._requests.items() if r.future.done()]
+        for key in finished[:max(0, len(finished) - KEEP_FINISHED)]:
+            del self._requests[key]
 
-    def _publish(self, bag: Path) -> Path:
-        """Move a complete bag into place; an existing bag of the same key wins."""
-        final = self.bag_dir / bag.name
-        try:
-            bag.rename(final)
-        except OSError:
-            if not final.is_dir():
-                raise   # otherwise made meanwhile by another process: keep that one
-        self.retention.apply(self.bag_dir, keep=final)
-        return final
-
-    def _failed(self, request: _Request, error: ProjectionError) -> None:
-        with self._lock:
-            if self._futures.get(request.key) is request.future:
-                del self._futures[request.key]
-        request.future.set_exception(error)
-
-    @staticmethod
-    def _bag_name(job: Job, key: str) -> str:
-        return f'{job.program}-{key[:24]}'
-
-    def _remove_stale_tmp(self) -> None:
-        """Delete temporary bags left by dead processes (crashes, kills)."""
-        for entry in self.bag_dir.glob(TMP_PREFIX + '*'):
-            try:
-                pid = int(entry.name[len(TMP_PREFIX):].split('-')[0])
-                os.kill(pid, 0)
-            except ValueError:
-                continue
-            except ProcessLookupError:
-                shutil.rmtree(entry, ignore_errors=True)
-            except PermissionError:   # alive, someone else's
-                continue
+    def _fail(self, request: _Request, error: ProjectionError) -> None:
+        """Fail a running (or just claimed) request; called with or without the lock."""
+        if self._requests.get(request.key) is request:
+            del self._requests[request.key]
+        if not request.future.done():
+            request.future.set_exception(error)
 
 
 class _Slot:
@@ -242,6 +212,7 @@ class _Slot:
         self._pool = pool
         self._process: Any = None
         self._conn: Any = None
+        self.request: _Request | None = None
         self._thread = threading.Thread(target=self._loop, name=f'projection-worker-{index}',
                                         daemon=True)
         self._thread.start()
@@ -268,38 +239,52 @@ class _Slot:
                 pass
 
     def _loop(self) -> None:
+        pool = self._pool
         try:
-            while (request := self._pool._queue.get()) is not None:
-                if not request.future.set_running_or_notify_cancel():
-                    continue
+            while (request := pool._queue.get()) is not None:
+                with pool._lock:
+                    future = request.future
+                    if future.done() or not future.set_running_or_notify_cancel():
+                        continue
+                    self.request = request
                 try:
-                    path = self._execute(request)
+                    result = self._execute(request)
                 except ProjectionError as exc:
-                    self._pool._failed(request, exc)
+                    if request.cancelled and exc.kind == 'worker_crashed':
+                        exc = ProjectionError(
+                            'cancelled', f'projection {request.key[:12]} was cancelled')
+                    with pool._lock:
+                        pool._fail(request, exc)
                 except Exception as exc:  # a bug here must fail the projection, not hang it
-                    self._pool._failed(request, ProjectionError(
-                        'simulation_failed', f'{type(exc).__name__}: {exc}'))
+                    with pool._lock:
+                        pool._fail(request, ProjectionError(
+                            'simulation_failed', f'{type(exc).__name__}: {exc}'))
                 else:
-                    request.future.set_result(str(path))
+                    request.future.set_result(result)
+                finally:
+                    self.request = None
         finally:
             self._stop()
 
-    def _execute(self, request: _Request) -> Path:
+    def _execute(self, request: _Request) -> ProjectionResult:
         self._ensure_worker()
-        tmp = self._pool._tmp_dir()
+        store = self._pool.store
+        tmp = store.tmp_dir()
         # The bag is written under its final name, which is also the name of its storage
         # file inside: identical projections give byte-identical bags.
-        bag = tmp / self._pool._bag_name(request.job, request.key)
+        bag = tmp / store.name(request.job, request.key)
         what = f'projection {request.key[:12]}'
         try:
             try:
                 self._conn.send(('project', (request.job, str(bag))))
             except OSError:   # the worker died while idle
                 self._died(what)
-            result, ok = self._receive(request.timeout, what)
+            timeline, ok = self._receive(request.timeout, what)
             if not ok:
-                raise result
-            return self._pool._publish(bag)
+                raise timeline
+            final = store.publish(bag)
+            timeline['meta']['bag'] = str(final)
+            return ProjectionResult(str(final), timeline)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
@@ -331,7 +316,7 @@ class _Slot:
         self._kill()
         context = self._pool._context
         parent, child = context.Pipe()
-        process = context.Process(target=_worker_main,
+        process = context.Process(target=worker_main,
                                   args=(child, self._pool.settings.to_dict()),
                                   name='projection-worker', daemon=True)
         process.start()
@@ -367,52 +352,7 @@ class _Slot:
         self._kill()
 
 
-def _usable(future: Future[str]) -> bool:
+def _usable(future: Future[ProjectionResult]) -> bool:
     """A finished future whose bag still exists (retention may have deleted it)."""
     return (not future.cancelled() and future.exception() is None
-            and Path(future.result()).is_dir())
-
-
-def _touch(path: Path) -> None:
-    try:
-        os.utime(path)
-    except FileNotFoundError:
-        pass
-
-
-def _worker_main(conn: Any, settings: dict[str, Any]) -> None:
-    """Entry point of a worker process: answers commands with ``(result, ok)``."""
-    import signal
-
-    # Ctrl-C belongs to the parent, which stops its workers itself.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    # PyBullet's C code prints banners on stdout (the parent's, e.g. a ROS node's); errors
-    # travel back through the pipe and stderr stays open.
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)
-    os.close(devnull)
-    try:
-        from projection_server.simulation.runner import run_projection
-
-        parsed = Settings.from_dict(settings)
-    except Exception as exc:
-        conn.send((ProjectionError('simulation_failed', f'worker start-up: {exc}'), False))
-        return
-    conn.send(('ready', True))
-    while True:
-        try:
-            command, payload = conn.recv()
-        except (EOFError, OSError):
-            return
-        if command == 'close':
-            return
-        try:
-            job, path = payload
-            run_projection(job, parsed, Path(path))
-            conn.send((path, True))
-        except ProjectionError as exc:
-            conn.send((exc, False))
-        except Exception as exc:
-            conn.send((ProjectionError(
-                'simulation_failed',
-                f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'), False))
+            and Path(future.result().bag).is_dir())

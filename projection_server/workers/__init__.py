@@ -1,0 +1,40 @@
+"""Who runs projections: the worker backend seam and its backends.
+
+Map of the package:
+
+* :mod:`.backend`: :class:`WorkerBackend`, the interface the projection layer talks to
+  (submit a job -> future of a :class:`ProjectionResult`; cancel; close).
+* :mod:`.bag_store`: the bag directory shared by every backend (names, retention).
+* :mod:`.local`: the ``local`` backend, supervised worker processes on this machine.
+"""
+
+from __future__ import annotations
+
+from typing import Any, TYPE_CHECKING
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.workers.backend import ProjectionResult, WorkerBackend
+from projection_server.workers.bag_store import BagStore, Retention
+
+if TYPE_CHECKING:
+    import os
+
+__all__ = ['BACKENDS', 'BagStore', 'ProjectionResult', 'Retention', 'WorkerBackend',
+           'create_backend']
+
+BACKENDS = ('local',)
+
+
+def create_backend(name: str, bag_dir: str | os.PathLike[str], workers: int,
+                   **options: Any) -> WorkerBackend:
+    """The backend called ``name`` with ``workers`` workers writing into ``bag_dir``.
+
+    Raises:
+        ProjectionError: kind ``invalid_settings`` for an unknown backend.
+    """
+    if name == 'local':
+        from projection_server.workers.local import WorkerPool
+
+        return WorkerPool(bag_dir, workers=workers, **options)
+    raise ProjectionError('invalid_settings',
+                          f'unknown projection backend {name!r} (known: {", ".join(BACKENDS)})')

@@ -1,0 +1,60 @@
+"""The worker process of the ``local`` backend: one warm simulator, commands over a pipe.
+
+Start-up pays once what every projection would otherwise pay again: imports, the PyBullet
+connection, message type registration and asset parsing. Each command is answered with
+``(result, ok)``; a projection's result is its timeline, made from the samples the worker
+has in memory (:mod:`projection_server.timeline.translate`).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import traceback
+from typing import Any
+
+from projection_server.simulation.errors import ProjectionError
+
+__all__ = ['worker_main']
+
+
+def worker_main(conn: Any, settings: dict[str, Any]) -> None:
+    """Entry point of a worker process: answers commands with ``(result, ok)``."""
+    import signal
+
+    # Ctrl-C belongs to the parent, which stops its workers itself.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # PyBullet's C code prints banners on stdout (the parent's, e.g. a ROS node's); errors
+    # travel back through the pipe and stderr stays open.
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.close(devnull)
+    try:
+        from projection_server.simulation.runner import Simulator
+        from projection_server.simulation.settings import Settings
+
+        parsed = Settings.from_dict(settings)
+        simulator = Simulator()
+    except Exception as exc:
+        conn.send((ProjectionError('simulation_failed', f'worker start-up: {exc}'), False))
+        return
+    try:
+        conn.send(('ready', True))
+        while True:
+            try:
+                command, payload = conn.recv()
+            except (EOFError, OSError):
+                return
+            if command == 'close':
+                return
+            try:
+                job, path = payload
+                conn.send((simulator.run(job, parsed, Path(path)), True))
+            except ProjectionError as exc:
+                conn.send((exc, False))
+            except Exception as exc:
+                conn.send((ProjectionError(
+                    'simulation_failed',
+                    f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'), False))
+    finally:
+        simulator.close()
