@@ -36,6 +36,7 @@ __all__ = [
     'cancel',
     'configure',
     'default_bag_dir',
+    'physics_settings',
     'prefetch',
     'programs',
     'project',
@@ -89,13 +90,15 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
 
 
 def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
-            timeout: float, owner: str | None = None) -> dict[str, Any]:
+            timeout: float, owner: str | None = None,
+            physics: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Run one projection and return ``{'bag': path, 'timeline': timeline or None}``.
 
     The timeline (the dict of ``docs/contracts.md``) is the one the worker made from its
     samples; it is None when the bag was found in the bag directory, made by an earlier
     process (``translate_bag`` reads it). ``timeout`` is the wall-clock limit of the
-    simulation in seconds. An identical projection made before (same scenario, program,
+    simulation in seconds; ``physics`` chooses engine settings (:func:`physics_settings`)
+    over the program's. An identical projection made before (same scenario, program,
     parameters, settings and code) returns the existing bag.
 
     Raises:
@@ -103,15 +106,16 @@ def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
             ``invalid_parameters``, ``timeout``, ``worker_crashed``, ``simulation_failed``,
             ``cancelled``...
     """
-    result = _wait(submit(scenario, program, params, timeout, owner))
+    result = _wait(submit(scenario, program, params, timeout, owner, physics))
     return {'bag': result.bag, 'timeline': result.timeline}
 
 
 def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
-             timeout: float, owner: str | None = None) -> str:
+             timeout: float, owner: str | None = None,
+             physics: Mapping[str, Any] | None = None) -> str:
     """Like :func:`project`, but return the path of the bag and keep the timeline for
     :func:`timeline`."""
-    result = _wait(submit(scenario, program, params, timeout, owner))
+    result = _wait(submit(scenario, program, params, timeout, owner, physics))
     if result.timeline is not None:
         with _lock:
             _timelines[result.bag] = result.timeline
@@ -137,18 +141,20 @@ def timeline(bag: str | os.PathLike[str]) -> dict[str, Any]:
 
 
 def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
-           timeout: float, owner: str | None = None) -> Future[ProjectionResult]:
+           timeout: float, owner: str | None = None,
+           physics: Mapping[str, Any] | None = None) -> Future[ProjectionResult]:
     """Like :func:`project`, but return at once with a future of the result.
 
     For running a query's parametrizations ahead of Prolog's backtracking; a later
     :func:`project` of the same projection waits for the same future.
     """
-    job = Job.checked(scenario, program, params)
+    job = Job.checked(scenario, program, params, physics)
     return _get_backend().submit(job, timeout, owner)
 
 
 def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
-             timeout: float, owner: str | None = None) -> int:
+             timeout: float, owner: str | None = None,
+             physics: Mapping[str, Any] | None = None) -> int:
     """Queue projections that a query will probably ask for next; return how many.
 
     Lets the workers run a query's next parametrizations while Prolog is still
@@ -158,7 +164,7 @@ def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str,
     queued = 0
     for params in params_list:
         try:
-            submit(scenario, program, params, timeout, owner)
+            submit(scenario, program, params, timeout, owner, physics)
             queued += 1
         except ProjectionError:
             pass
@@ -181,6 +187,12 @@ def programs() -> list[dict[str, Any]]:
     """The registered control programs with their formal parameters (name, unit, min, max,
     default)."""
     return _programs.describe()
+
+
+def physics_settings(program: str | None = None) -> list[dict[str, Any]]:
+    """The engine settings a query may choose, each with its name, unit, min, max, whether
+    it is an integer, and its default for ``program`` (the settings file's without one)."""
+    return _get_backend().settings.describe_physics(program)
 
 
 def shutdown() -> None:

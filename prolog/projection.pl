@@ -1,15 +1,18 @@
 :- module(projection,
           [ make_projection/4,          % +Scenario, +Program, +Params, -Timeline
-            make_projection/5,          % +Scenario, +Program, +Params, +Timeout, -Timeline
-            simulate/5,                 % +Scenario, +Program, +Params, +Timeout, -Log
+            make_projection/5,          % +Scenario, +Program, +Params, +Options, -Timeline
+            simulate/5,                 % +Scenario, +Program, +Params, +Options, -Log
             translate/2,                % +Log, -Timeline
             projection_program/2,       % ?Program, -FormalParams:list(dict)
+            projection_physics_setting/3, % ?Program, ?Name, -Setting:dict
             projection_default_timeout/1 % -Seconds
           ]).
 :- autoload(library(apply), [maplist/3, foldl/4]).
 :- autoload(library(error),
-            [ must_be/2, domain_error/2, existence_error/2, type_error/2 ]).
+            [ must_be/2, domain_error/2, existence_error/2, type_error/2,
+              instantiation_error/1 ]).
 :- autoload(library(lists), [member/2, nth0/3, numlist/3]).
+:- autoload(library(option), [option/3]).
 :- use_module(library(janus), [py_call/2]).
 :- use_module(scenario, [scenario_description/2]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1]).
@@ -43,6 +46,16 @@ bag into one.
 An identical projection (same scenario description, program, parameters and
 physics settings) reuses the bag and the timeline made before.
 
+The physics settings come from config/physics.yaml (with settings per
+program there); a query may choose its own, within the ranges that
+projection_physics_setting/3 lists, e.g. to check a prediction against a 4x
+finer time step:
+
+```
+?- make_projection(grasping, grasp_object, [(_, force, [5])],
+                   [physics(_{rate_hz: 960, solver_iterations: 400})], TL).
+```
+
 After make_projection/4,5 (or translate/2), the paper's section II form runs
 on that projection's timeline:
 
@@ -56,41 +69,52 @@ on that projection's timeline:
 */
 
 %!  make_projection(+Scenario, +Program, +Params, -Timeline) is nondet.
-%!  make_projection(+Scenario, +Program, +Params, +Timeout, -Timeline) is nondet.
+%!  make_projection(+Scenario, +Program, +Params, +Options, -Timeline) is nondet.
 %
 %   Project Program in Scenario for each instantiation of Params (see the
 %   module doc), binding the parameter variables and Timeline, the id of the
-%   projection's timeline.  Timeout is the wall-clock limit in seconds of one
-%   simulation; make_projection/4 uses projection_default_timeout/1.
+%   projection's timeline.  Options is a list of
+%
+%     - timeout(+Seconds): the wall-clock limit of one simulation
+%       (default: projection_default_timeout/1);
+%     - physics(+Dict): engine settings of these projections instead of the
+%       program's (projection_physics_setting/3), e.g.
+%       `_{rate_hz: 960, solver_iterations: 400}`.
+%
+%   A number as Options is the timeout.
 %
 %   @error existence_error(scenario, S), existence_error(program, P),
-%          existence_error(program_parameter, Program:Name)
+%          existence_error(program_parameter, Program:Name),
+%          existence_error(physics_setting, Name)
 %   @error type_error(projection_parameter, E) for a malformed Params element
 %   @error domain_error(parameter_value, Name=Value) for a value out of range
+%   @error domain_error(projection_option, O) for an unknown option
+%   @error domain_error(physics_setting(Name, Range), Value) for a physics
+%          setting out of Range (`between(Min, Max)` or `multiple_of(N)`)
 %   @error projection_error(Kind, Message) when a simulation fails or times out
 
 make_projection(Scenario, Program, Params, Timeline) :-
     projection_default_timeout(Timeout),
     make_projection(Scenario, Program, Params, Timeout, Timeline).
 
-make_projection(Scenario, Program, Params, Timeout, Timeline) :-
-    simulate(Scenario, Program, Params, Timeout, Log),
+make_projection(Scenario, Program, Params, Options, Timeline) :-
+    simulate(Scenario, Program, Params, Options, Log),
     translate(Log, Timeline).
 
-%!  simulate(+Scenario, +Program, +Params, +Timeout, -Log) is nondet.
+%!  simulate(+Scenario, +Program, +Params, +Options, -Log) is nondet.
 %
 %   Set up and run one simulation per instantiation of Params; Log is the
-%   path of its bag.  Errors as for make_projection/5.
+%   path of its bag.  Options and errors as for make_projection/5.
 
-simulate(Scenario, Program, Params, Timeout, Log) :-
+simulate(Scenario, Program, Params, Options, Log) :-
     must_be(atom, Scenario),
     must_be(atom, Program),
     must_be(list, Params),
-    must_be_positive(Timeout),
     (   projection_program(Program, Formal)
     ->  true
     ;   existence_error(program, Program)
     ),
+    projection_options(Program, Options, Timeout, Physics),
     maplist(parse_param(Program, Formal), Params, Choices),
     check_unique(Choices),
     scenario_description(Scenario, Description),
@@ -98,22 +122,66 @@ simulate(Scenario, Program, Params, Timeout, Log) :-
                       dict_pairs(Values, params, Pairs) ), All),
     py_call('projection_server.projection':workers(), Depth),
     nth0(I, All, Values),
-    prefetch(Description, Program, All, I, Depth, Timeout),
+    prefetch(Description, Program, All, I, Depth, Timeout, Physics),
     maplist(bind_choice(Values), Choices),
-    run_simulation(Description, Program, Values, Timeout, Log).
+    run_simulation(Description, Program, Values, Timeout, Physics, Log).
 
 bind_choice(Values, choice(Var, Name, _)) :-
     get_dict(Name, Values, Var).
 
 % While the workers simulate parametrization I, the next Depth ones are
 % queued, so a query that backtracks finds them done or under way.
-prefetch(Description, Program, All, I, Depth, Timeout) :-
+prefetch(Description, Program, All, I, Depth, Timeout, Physics) :-
     From is I + 1, To is I + Depth,
     findall(V, ( between(From, To, J), nth0(J, All, V) ), Next),
     (   Next == []
     ->  true
     ;   py_call('projection_server.projection':prefetch(Description, Program, Next,
-                                                        Timeout), _)
+                                                        Timeout, physics=Physics), _)
+    ).
+
+projection_options(_, Timeout, Timeout, _{}) :-
+    number(Timeout), !,
+    must_be_positive(Timeout).
+projection_options(Program, Options, Timeout, Physics) :-
+    must_be(list, Options),
+    maplist(check_option, Options),
+    projection_default_timeout(Default),
+    option(timeout(Timeout), Options, Default),
+    must_be_positive(Timeout),
+    option(physics(Physics), Options, _{}),
+    (   is_dict(Physics)
+    ->  true
+    ;   type_error(dict, Physics)
+    ),
+    dict_pairs(Physics, _, Pairs),
+    maplist(check_physics_setting(Program), Pairs).
+
+check_option(Option) :-
+    var(Option), !,
+    instantiation_error(Option).
+check_option(timeout(_)) :- !.
+check_option(physics(_)) :- !.
+check_option(Option) :-
+    domain_error(projection_option, Option).
+
+check_physics_setting(Program, Name-Value) :-
+    (   projection_physics_setting(Program, Name, Setting)
+    ->  true
+    ;   existence_error(physics_setting, Name)
+    ),
+    (   get_dict(integer, Setting, @(true))
+    ->  must_be(integer, Value)
+    ;   must_be(number, Value)
+    ),
+    get_dict(min, Setting, Min), get_dict(max, Setting, Max),
+    (   Value >= Min, Value =< Max
+    ->  true
+    ;   domain_error(physics_setting(Name, between(Min, Max)), Value)
+    ),
+    (   get_dict(multiple_of, Setting, N), Value mod N =\= 0
+    ->  domain_error(physics_setting(Name, multiple_of(N)), Value)
+    ;   true
     ).
 
 parse_param(Program, Formal, Param, choice(Var, Name, Values)) :-
@@ -166,9 +234,10 @@ instantiate([choice(_, Name, Values)|T], [Name-Value|Pairs]) :-
     member(Value, Values),
     instantiate(T, Pairs).
 
-run_simulation(Description, Program, Values, Timeout, Log) :-
+run_simulation(Description, Program, Values, Timeout, Physics, Log) :-
     catch(py_call('projection_server.projection':simulate(Description, Program,
-                                                          Values, Timeout), Log0),
+                                                          Values, Timeout,
+                                                          physics=Physics), Log0),
           error(python_error(Class, Value), _),
           projection_error(Class, Value)),
     atom_string(Log, Log0).
@@ -234,6 +303,22 @@ projection_program(Program, Formal) :-
     get_dict(program, P, Name),
     atom_string(Program, Name),
     get_dict(params, P, Formal).
+
+%!  projection_physics_setting(?Program, ?Name, -Setting:dict) is nondet.
+%
+%   Name is a physics setting that a query may choose for projections of
+%   Program (make_projection/5's physics(Dict) option).  Setting is a dict
+%   with its name, unit, min, max, integer (`@true` or `@false`), doc and
+%   default (the program's, from config/physics.yaml); that of `rate_hz` has
+%   multiple_of: the step rate must be a multiple of the control and logging
+%   rates.
+
+projection_physics_setting(Program, Name, Setting) :-
+    projection_program(Program, _),
+    py_call('projection_server.projection':physics_settings(Program), Settings),
+    member(Setting, Settings),
+    get_dict(name, Setting, Name0),
+    atom_string(Name, Name0).
 
 %!  projection_default_timeout(-Seconds) is det.
 %

@@ -52,5 +52,6 @@ sandbox:safe_primitive(projection:make_projection(_, _, _, _, _)).
 sandbox:safe_primitive(projection:simulate(_, _, _, _, _)).
 sandbox:safe_primitive(projection:translate(_, _)).
 sandbox:safe_primitive(projection:projection_program(_, _)).
+sandbox:safe_primitive(projection:projection_physics_setting(_, _, _)).
 sandbox:safe_primitive(timeline:timeline_create(_, _)).
 sandbox:safe_primitive(timeline:timeline_remove(_)).

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import functools
 import hashlib
 import json
@@ -12,6 +12,7 @@ from typing import Any, TYPE_CHECKING
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
+from projection_server.simulation.settings import check_physics
 
 if TYPE_CHECKING:
     from projection_server.simulation.settings import Settings
@@ -53,7 +54,9 @@ def code_version() -> str:
 
 @dataclass(frozen=True, eq=False)
 class Job:
-    """One projection: a scenario description, a program name and its parameter values.
+    """One projection: a scenario description, a program name, its parameter values and the
+    physics settings the query chose (:data:`~projection_server.simulation.settings.
+    PHYSICS_OPTIONS`; the others come from the settings file).
 
     Construct with :meth:`checked`, which validates everything that can be checked without a
     simulator and fills in parameter defaults.
@@ -62,18 +65,27 @@ class Job:
     scenario: dict[str, Any]
     program: str
     params: dict[str, float]
+    physics: dict[str, float] = field(default_factory=dict)
 
     @classmethod
-    def checked(cls, scenario: Any, program: str, params: Any) -> Job:
+    def checked(cls, scenario: Any, program: str, params: Any, physics: Any = None) -> Job:
         """Validate and normalize (raises ProjectionError with the matching kind)."""
         parse_scenario(scenario)
         values = get_program(program).check(params if params is not None else {})
+        chosen = check_physics(physics if physics is not None else {})
         # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
-        return cls(json.loads(canonical_json(scenario)), program, values)
+        return cls(json.loads(canonical_json(scenario)), program, values, chosen)
+
+    def settings(self, settings: Settings) -> Settings:
+        """The settings this projection runs with, given those of the settings file."""
+        return settings.for_projection(self.program, self.physics)
 
     def key(self, settings: Settings) -> str:
-        """Content hash of job, settings and code version: the cache key and the bag's name."""
+        """Content hash of job, its settings and the code version: the cache key and the
+        bag's name. Physics chosen by the query count as what they amount to, so choosing
+        the program's own settings finds the same bag."""
         text = canonical_json({'scenario': self.scenario, 'program': self.program,
-                               'params': self.params, 'settings': settings.to_dict(),
+                               'params': self.params,
+                               'settings': self.settings(settings).to_dict(),
                                'code': code_version()})
         return hashlib.sha256(text.encode()).hexdigest()

@@ -56,6 +56,7 @@ class Simulator:
         scenario = parse_scenario(job.scenario)
         program = get_program(job.program)
         key = job.key(settings)
+        settings = job.settings(settings)
         physics = build_world(self.client, scenario, settings)
         task = program.create(physics, scenario, dict(job.params),
                               np.random.default_rng(int(key[:16], 16)))

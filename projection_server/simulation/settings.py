@@ -2,26 +2,37 @@
 
 The settings are part of every projection's cache key and are recorded in its bag, so the
 translation of a bag uses the timeline thresholds the bag was made with.
+
+The engine settings of :data:`PHYSICS_OPTIONS` can be chosen per program (the ``programs``
+section of the file) and per query (``make_projection(..., [physics(_{...})], TL)``); a
+projection uses ``settings.for_projection(program, physics)``: the file's settings, then the
+program's, then the query's. A finer time step keeps the control and logging rates::
+
+    >>> load_settings().for_projection('grasp_object', {'rate_hz': 960}).control
+    ControlSettings(steps_per_control=16, steps_per_log=16)
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields, replace
+import math
 import os
 from pathlib import Path
-from typing import Any, TYPE_CHECKING
+from typing import Any
 
 from projection_server.simulation.errors import ProjectionError
 
-if TYPE_CHECKING:
-    from collections.abc import Mapping
-
 __all__ = [
     'ControlSettings',
+    'PHYSICS_OPTIONS',
+    'PhysicsOption',
     'PhysicsSettings',
     'Settings',
     'TimelineSettings',
+    'check_physics',
     'config_path',
+    'describe_physics',
     'load_settings',
 ]
 
@@ -39,6 +50,7 @@ class PhysicsSettings:
     contact_erp: float
     friction_erp: float
     contact_breaking_threshold: float
+    solver_residual_threshold: float
     deterministic_overlapping_pairs: int
     ellipsoid_segments: tuple[int, int]
 
@@ -69,25 +81,141 @@ class TimelineSettings:
 
 
 @dataclass(frozen=True)
+class PhysicsOption:
+    """An engine setting a program or a query may choose, within ``[min, max]``."""
+
+    name: str
+    unit: str
+    min: float
+    max: float
+    integer: bool
+    doc: str
+
+    def describe(self, default: Any) -> dict[str, Any]:
+        return {'name': self.name, 'unit': self.unit, 'min': self.min, 'max': self.max,
+                'integer': self.integer, 'default': default, 'doc': self.doc}
+
+
+PHYSICS_OPTIONS: dict[str, PhysicsOption] = {o.name: o for o in (
+    PhysicsOption('rate_hz', 'Hz', 60, 4800, True,
+                  'physics steps per simulated second; a multiple of the control and '
+                  'logging rates, which stay as they are'),
+    PhysicsOption('solver_iterations', '', 1, 2000, True,
+                  'constraint solver iterations per step (at most)'),
+    PhysicsOption('solver_residual_threshold', '', 0.0, 0.01, False,
+                  'the solver stops iterating once its residual is below this'),
+    PhysicsOption('erp', '', 0.0, 1.0, False, 'error reduction of joints'),
+    PhysicsOption('contact_erp', '', 0.0, 1.0, False, 'error reduction of contacts'),
+    PhysicsOption('friction_erp', '', 0.0, 1.0, False, 'error reduction of friction'),
+    PhysicsOption('contact_breaking_threshold', 'm', 0.0001, 0.05, False,
+                  'contact points further apart than this are dropped'),
+)}
+
+
+@dataclass(frozen=True)
 class Settings:
-    """Everything besides the scenario, program and parameters that shapes a projection."""
+    """Everything besides the scenario, program and parameters that shapes a projection.
+
+    ``programs`` maps a program's name to the :data:`PHYSICS_OPTIONS` values it runs with
+    instead of ``physics``'s; :meth:`for_projection` gives the settings of one projection.
+    """
 
     physics: PhysicsSettings
     control: ControlSettings
     timeline: TimelineSettings
+    programs: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain, JSON-able form (tuples become lists)."""
-        return _jsonable(asdict(self))
+        """Plain, JSON-able form (tuples become lists; no ``programs`` key when empty)."""
+        data = _jsonable(asdict(self))
+        if not data['programs']:
+            del data['programs']
+        return data
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Settings:
         """Check and convert a mapping of the form of ``config/physics.yaml``."""
         sections = {'physics': PhysicsSettings, 'control': ControlSettings,
                     'timeline': TimelineSettings}
-        _check_keys('settings', data, sections)
-        return cls(**{name: _section(name, section, data[name])
-                      for name, section in sections.items()})
+        _check_keys('settings', {k: v for k, v in data.items() if k != 'programs'}, sections)
+        settings = cls(**{name: _section(name, section, data[name])
+                          for name, section in sections.items()})
+        programs = data.get('programs') or {}
+        if not isinstance(programs, dict):
+            raise ProjectionError('invalid_settings', 'programs: expected a mapping')
+        checked = {}
+        for program, overrides in programs.items():
+            checked[str(program)] = check_physics(overrides, settings.control_hz,
+                                                  where=f'programs.{program}')
+        return replace(settings, programs=checked)
+
+    @property
+    def control_hz(self) -> int:
+        """Least common multiple of the control and logging rates [Hz]: ``rate_hz`` must be
+        a multiple of it."""
+        rate, control = self.physics.rate_hz, self.control
+        return math.lcm(rate // math.gcd(rate, control.steps_per_control),
+                        rate // math.gcd(rate, control.steps_per_log))
+
+    def for_projection(self, program: str,
+                       physics: Mapping[str, Any] | None = None) -> Settings:
+        """The settings of one projection of ``program``: the program's physics options,
+        then ``physics`` (a query's, checked here), over these settings. Idempotent."""
+        overrides = {**self.programs.get(program, {}),
+                     **check_physics(physics or {}, self.control_hz)}
+        base = self.physics
+        values = {**{name: getattr(base, name) for name in PHYSICS_OPTIONS}, **overrides}
+        rate = values['rate_hz']
+        control = ControlSettings(
+            steps_per_control=self.control.steps_per_control * rate // base.rate_hz,
+            steps_per_log=self.control.steps_per_log * rate // base.rate_hz)
+        return Settings(replace(base, **values), control, self.timeline)
+
+    def describe_physics(self, program: str | None = None) -> list[dict[str, Any]]:
+        """The :data:`PHYSICS_OPTIONS` with their ranges and defaults (``program``'s)."""
+        defaults = self.for_projection(program) if program else self
+        described = [option.describe(getattr(defaults.physics, name))
+                     for name, option in PHYSICS_OPTIONS.items()]
+        for entry in described:
+            if entry['name'] == 'rate_hz':
+                entry['multiple_of'] = defaults.control_hz
+        return described
+
+
+def check_physics(overrides: Any, control_hz: int = 1,
+                  where: str = 'physics') -> dict[str, Any]:
+    """``overrides`` as a dict of :data:`PHYSICS_OPTIONS` values, or ProjectionError of kind
+    ``invalid_settings`` naming the first bad setting and its accepted range (``rate_hz``
+    must also be a multiple of ``control_hz``)."""
+    if not isinstance(overrides, Mapping):
+        raise ProjectionError('invalid_settings', f'{where}: expected a mapping of settings')
+    checked = {}
+    for name, value in overrides.items():
+        option = PHYSICS_OPTIONS.get(str(name))
+        if option is None:
+            raise ProjectionError(
+                'invalid_settings', f'{where}: unknown physics setting {name!r}; '
+                f'accepted: {", ".join(PHYSICS_OPTIONS)}')
+        kind = int if option.integer else (int, float)
+        if isinstance(value, bool) or not isinstance(value, kind):
+            what = 'an integer' if option.integer else 'a number'
+            raise ProjectionError('invalid_settings',
+                                  f'{where}: {name} must be {what}, got {value!r}')
+        if not option.min <= value <= option.max:
+            raise ProjectionError(
+                'invalid_settings',
+                f'{where}: {name} must be in [{option.min:g}, {option.max:g}], got {value!r}')
+        if name == 'rate_hz' and value % control_hz:
+            raise ProjectionError(
+                'invalid_settings', f'{where}: rate_hz must be a multiple of {control_hz} '
+                f'(the control and logging rates), got {value!r}')
+        checked[str(name)] = int(value) if option.integer else float(value)
+    return checked
+
+
+def describe_physics(program: str | None = None) -> list[dict[str, Any]]:
+    """:meth:`Settings.describe_physics` of the settings file."""
+    return load_settings().describe_physics(program)
 
 
 def config_path() -> Path:

@@ -99,6 +99,7 @@ def _configure(client: Any, s: PhysicsSettings) -> None:
         fixedTimeStep=s.time_step, numSubSteps=0, numSolverIterations=s.solver_iterations,
         erp=s.erp, contactERP=s.contact_erp, frictionERP=s.friction_erp,
         contactBreakingThreshold=s.contact_breaking_threshold,
+        solverResidualThreshold=s.solver_residual_threshold,
         deterministicOverlappingPairs=s.deterministic_overlapping_pairs)
     client.setGravity(*s.gravity)
 

@@ -1,0 +1,80 @@
+"""Physics settings per program and per query: ranges, precedence, and the cache key."""
+
+from __future__ import annotations
+
+import pytest
+
+from projection_server.simulation import Job, load_settings, ProjectionError, Settings
+from projection_server.simulation.settings import PHYSICS_OPTIONS
+
+
+@pytest.fixture(scope='module')
+def settings():
+    data = load_settings().to_dict()
+    data['programs'] = {'pour': {'solver_iterations': 20, 'rate_hz': 120}}
+    return Settings.from_dict(data)
+
+
+def test_a_finer_step_keeps_the_control_and_logging_rates(settings):
+    base, finer = settings, settings.for_projection('grasp_object', {'rate_hz': 960})
+    assert finer.physics.rate_hz == 960 and finer.physics.time_step == pytest.approx(1 / 960)
+    for name in ('steps_per_control', 'steps_per_log'):
+        assert (getattr(finer.control, name) / 960
+                == pytest.approx(getattr(base.control, name) / base.physics.rate_hz))
+
+
+def test_the_query_overrides_the_program_which_overrides_the_file(settings):
+    pour = settings.for_projection('pour')
+    assert (pour.physics.solver_iterations, pour.physics.rate_hz) == (20, 120)
+    assert pour.control.steps_per_control * 60 == 120
+    grasp = settings.for_projection('grasp_object')
+    assert grasp.physics == settings.physics and grasp.programs == {}
+    chosen = settings.for_projection('pour', {'solver_iterations': 300})
+    assert (chosen.physics.solver_iterations, chosen.physics.rate_hz) == (300, 120)
+
+
+def test_the_settings_of_a_projection_are_a_fixed_point(settings):
+    once = settings.for_projection('pour', {'rate_hz': 480})
+    assert once.for_projection('pour', {'rate_hz': 480}) == once
+    assert Settings.from_dict(once.to_dict()) == once
+
+
+@pytest.mark.parametrize('physics, words', [
+    ({'rate_hz': 1000}, ['rate_hz', 'multiple of 60']),
+    ({'rate_hz': 30}, ['rate_hz', '[60, 4800]']),
+    ({'solver_iterations': 0}, ['solver_iterations', '[1, 2000]']),
+    ({'solver_iterations': 2.5}, ['solver_iterations', 'integer']),
+    ({'contact_erp': 'high'}, ['contact_erp', 'number']),
+    ({'gravity': 3.0}, ['gravity', 'accepted', 'rate_hz']),
+])
+def test_a_setting_out_of_its_range_is_refused_naming_it(settings, make_scenario, physics,
+                                                         words):
+    with pytest.raises(ProjectionError) as info:
+        Job.checked(make_scenario(), 'grasp_object', {}, physics).key(settings)
+    assert info.value.kind == 'invalid_settings'
+    assert all(word in str(info.value) for word in words), str(info.value)
+
+
+def test_a_programs_settings_in_the_file_are_checked_too():
+    data = load_settings().to_dict()
+    data['programs'] = {'pour': {'solver_iterations': -1}}
+    with pytest.raises(ProjectionError, match='programs.pour: solver_iterations'):
+        Settings.from_dict(data)
+
+
+def test_the_cache_key_is_that_of_the_settings_the_projection_runs_with(settings,
+                                                                        make_scenario):
+    plain = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0})
+    finer = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0}, {'rate_hz': 960})
+    explicit = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0},
+                           {'rate_hz': settings.physics.rate_hz})
+    assert finer.key(settings) != plain.key(settings) == explicit.key(settings)
+
+
+def test_every_option_is_a_field_of_the_physics_with_a_default_in_its_range(settings):
+    described = {d['name']: d for d in settings.describe_physics('pour')}
+    assert set(described) == set(PHYSICS_OPTIONS)
+    for name, d in described.items():
+        assert d['min'] <= d['default'] <= d['max'], name
+    assert described['solver_iterations']['default'] == 20
+    assert described['rate_hz']['multiple_of'] == 60

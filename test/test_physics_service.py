@@ -1,0 +1,65 @@
+"""Physics settings chosen by a query (make_projection/5's physics option), through the
+real service: checked against their ranges, recorded in the bag, part of the cache key."""
+
+from __future__ import annotations
+
+import json
+
+from projection_interfaces.srv import PrologQuery
+import pytest
+
+Q = PrologQuery.Request
+SIM_TIMEOUT = 120.0
+
+
+def ask(call, text, mode=Q.ALL_SOLUTIONS):
+    r = call(PrologQuery, 'query', Q(mode=mode, query=text, timeout=SIM_TIMEOUT),
+             timeout=SIM_TIMEOUT * 3)
+    return r, [json.loads(s) for s in r.solutions]
+
+
+def bag_settings(path):
+    from rosbags.highlevel import AnyReader
+    from projection_server.bags import typestore
+    with AnyReader([path], default_typestore=typestore()) as reader:
+        connections = [c for c in reader.connections if c.topic == '/projection/info']
+        for conn, _, raw in reader.messages(connections):
+            return json.loads(reader.deserialize(raw, conn.msgtype).settings_json)
+
+
+def test_a_querys_physics_settings_are_used_and_recorded_in_the_bag(call):
+    from pathlib import Path
+    r, sols = ask(call, '''
+        simulate(grasping, grasp_object, [(_, force, [5])], [], Default),
+        simulate(grasping, grasp_object, [(_, force, [5])],
+                 [physics(_{rate_hz: 480, solver_iterations: 150}), timeout(90)], Finer),
+        projection_physics_setting(grasp_object, rate_hz, S),
+        get_dict(default, S, Rate),
+        simulate(grasping, grasp_object, [(_, force, [5])],
+                 [physics(_{rate_hz: Rate})], Same)''', mode=Q.ONCE)
+    assert r.ok, r.message
+    default, finer, same = (sols[0][k] for k in ('Default', 'Finer', 'Same'))
+    assert same == default != finer
+    recorded = bag_settings(Path(finer))
+    assert recorded['physics']['rate_hz'] == 480
+    assert recorded['physics']['solver_iterations'] == 150
+    assert recorded['control'] == {'steps_per_control': 8, 'steps_per_log': 8}   # 60 Hz
+    assert bag_settings(Path(default))['physics']['rate_hz'] == sols[0]['Rate']
+
+
+@pytest.mark.parametrize('options, kind, words', [
+    ('[physics(_{rate_hz: 1000})]', 'domain_error', ['rate_hz', 'multiple_of(60)']),
+    ('[physics(_{solver_iterations: 0})]', 'domain_error',
+     ['solver_iterations', 'between(1,2000)']),
+    ('[physics(_{gravity: 3.0})]', 'existence_error', ['gravity']),
+    ('[physics(_{solver_iterations: 2.5})]', 'type_error', ['integer']),
+    ('[physics(fine)]', 'type_error', ['dict']),
+    ('[speed(fast)]', 'domain_error', ['projection_option']),
+    ('[timeout(-1)]', 'domain_error', ['positive']),
+])
+def test_a_bad_option_is_an_error_naming_it(call, options, kind, words):
+    r, _ = ask(call, f'make_projection(grasping, grasp_object, [(_, force, [5])], {options}, T)',
+               mode=Q.ONCE)
+    assert not r.ok and r.error_kind == kind, (r.error_kind, r.message)
+    text = r.message + r.error
+    assert all(w in text.replace(' ', '') for w in words), text
