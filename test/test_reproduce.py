@@ -173,3 +173,52 @@ def test_the_poured_pancake_experiment_builds_its_scenario_before_projecting():
     assert 'object(pancake, _{name: pancake1, particles: Points})' in query
     assert TABLE_III_TURNING.query(quick=True).startswith('make_projection(turning, ')
     assert [e.key for e in EXPERIMENTS][-1] == 'table3_poured'
+
+
+# -- convergence: a result beside the same query at finer physics (no server) --------------
+
+def test_a_query_at_finer_physics_passes_them_as_make_projection_options():
+    from projection_server.reproduce.experiments import TABLE_II_POURING
+    query = TABLE_II_POURING.query(quick=True, physics={'rate_hz': 960, 'solver_iterations': 80})
+    assert ('[(P1, position, [0.0]), (P2, time, [0.5]), (P3, angle, [1.99, 2.14])], '
+            '[timeout(600.0), physics(_{rate_hz: 960, solver_iterations: 80})], TL)') in query
+
+
+def test_convergence_counts_equal_outcomes_and_numbers_within_the_reference_tolerances():
+    from projection_server.reproduce import paper
+    from projection_server.reproduce.experiments import TABLE_I_GRASPING, TABLE_II_POURING
+    from projection_server.reproduce.fidelity import converged
+    outcomes = {k: 'ok' for k in TABLE_I_GRASPING.grid()}
+    finer = {**outcomes, (11, 0.0): 'break'}
+    reference = dataclasses.replace(_result(TABLE_I_GRASPING, finer),
+                                    physics={'rate_hz': 960})
+    c = converged(_result(TABLE_I_GRASPING, outcomes), reference)
+    assert (c.agree, c.total, c.count_deviation) == (17, 18, None)
+    assert c.summary().startswith('17/18 cells agree with the reference (rate_hz 960); '
+                                  'differs at force=11 position=0.0 outcome: reference break')
+    ours = {k: dict(v) for k, v in paper.TABLE_II.items()}
+    finer = {k: dict(v) for k, v in paper.TABLE_II.items()}
+    key = (0.0, 0.5, 2.14)
+    finer[key]['pan'] = round(ours[key]['pan'] / 1.1)    # ours 10 % above the reference
+    other = (0.0, 1.0, 2.14)
+    finer[other]['round'] = ours[other]['round'] + 0.2   # beyond 0.1
+    c = converged(_result(TABLE_II_POURING, ours), _result(TABLE_II_POURING, finer))
+    assert c.total == 5 * len(paper.TABLE_II) and c.agree == c.total - 1
+    assert c.differences[0][:2] == (other, 'round')
+    assert c.count_deviation == pytest.approx(ours[key]['pan'] / finer[key]['pan'] - 1)
+
+
+def test_the_report_shows_the_agreement_with_the_reference_beside_the_papers(tmp_path):
+    from projection_server.reproduce import paper
+    from projection_server.reproduce.experiments import TABLE_III_TURNING
+    from projection_server.reproduce.report import format_table, write_report
+    result = _result(TABLE_III_TURNING, dict(paper.TABLE_III))
+    reference = dataclasses.replace(result, physics={'rate_hz': 960, 'solver_iterations': 400})
+    lines = format_table(result, reference).splitlines()
+    assert lines[-3].startswith('6/6 cells agree')
+    assert lines[-2] == ('6/6 cells agree with the reference (rate_hz 960, '
+                         'solver_iterations 400)')
+    text = write_report([result], tmp_path, frames=False,
+                        references={'table3': reference}).read_text()
+    assert '**6/6 cells agree**' in text
+    assert 'Convergence: **6/6 cells agree with the reference (rate_hz 960' in text

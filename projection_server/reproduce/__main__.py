@@ -42,6 +42,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--timeout', type=float, default=900.0,
                         help='seconds one solution (projection) may take')
     parser.add_argument('--no-frames', action='store_true', help='skip rendering key frames')
+    parser.add_argument('--reference', action='store_true',
+                        help='run each experiment again at a 4x finer time step (4x the '
+                             'solver iterations) and report the agreement with it')
     args = parser.parse_args(argv)
 
     import rclpy
@@ -57,7 +60,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with PrologClient(args.server) as client, \
                 _server(client, args.server, args.out / 'bags', args.timeout):
             reproduce(client, args.out, quick=args.quick, experiments=experiments,
-                      timeout=args.timeout, frames=not args.no_frames, say=_say)
+                      timeout=args.timeout, frames=not args.no_frames,
+                      reference=args.reference, say=_say)
     except (ReproduceError, LaunchError, PrologClientError) as exc:
         print(f'reproduce: {exc}', file=sys.stderr)
         return 1

@@ -107,12 +107,22 @@ class Experiment:
             keys = [k + (v,) for k in keys for v in p.grid(quick)]
         return keys
 
-    def query(self, quick: bool = False) -> str:
-        """The paper's query (make_projection + evaluation), plus what the report needs."""
+    def query(self, quick: bool = False, physics: Mapping[str, float] | None = None) -> str:
+        """The paper's query (make_projection + evaluation), plus what the report needs;
+        ``physics``: the engine settings its projections run with instead of the program's
+        (make_projection/5's physics option)."""
         choices = ', '.join(
             f'({p.var}, {p.name}, [{", ".join(_prolog_number(v) for v in p.grid(quick))}])'
             for p in self.params)
-        timeout = '' if self.sim_timeout is None else f'{_prolog_number(self.sim_timeout)}, '
+        if physics:
+            chosen = ', '.join(f'{k}: {_prolog_number(v)}' for k, v in physics.items())
+            options = [f'physics(_{{{chosen}}})']
+            if self.sim_timeout is not None:
+                options.insert(0, f'timeout({_prolog_number(self.sim_timeout)})')
+            timeout = f'[{", ".join(options)}], '
+        else:   # the paper's form; a number as the options is the timeout
+            timeout = ('' if self.sim_timeout is None
+                       else f'{_prolog_number(self.sim_timeout)}, ')
         goals = [self.setup] if self.setup else []
         goals += [f'make_projection({self.scenario}, {self.program}, [{choices}], {timeout}TL)']
         goals += [m.goal for m in self.measures]
@@ -169,6 +179,7 @@ class Result:
     skipped: str | None = None
     error: str | None = None
     elapsed: float = 0.0
+    physics: Mapping[str, float] | None = None   # chosen by the query; None: the program's
 
     def by_key(self) -> dict[tuple, Run]:
         return {r.key: r for r in self.runs}
@@ -236,15 +247,18 @@ def compare(result: Result) -> Comparison:
 
 
 def run_experiment(client: PrologClient, experiment: Experiment, *, quick: bool = False,
-                   timeout: float = 900.0, out: Callable[[str], None] = print) -> Result:
+                   timeout: float = 900.0, out: Callable[[str], None] = print,
+                   physics: Mapping[str, float] | None = None) -> Result:
     """Run the experiment's query incrementally through ``client``; report each solution.
+
+    ``physics`` chooses the engine settings of its projections (e.g. a finer reference).
 
     An experiment whose program is not registered on the server is skipped, and a query
     error stops the experiment with the runs made so far: neither raises.
     """
     from projection_server.client import PrologQueryError
 
-    result = Result(experiment, quick)
+    result = Result(experiment, quick, physics=dict(physics) if physics else None)
     if client.once(experiment.registered_query()) is None:
         result.skipped = (f'program {experiment.program} is not registered on the server '
                           f'({experiment.registered_query()} fails)')
@@ -252,10 +266,11 @@ def run_experiment(client: PrologClient, experiment: Experiment, *, quick: bool 
         return result
     grid = experiment.grid(quick)
     out(f'{experiment.title}: {len(grid)} projections'
-        + (' (quick grid)' if quick else ''))
+        + (' (quick grid)' if quick else '')
+        + (f' with physics {_show(dict(physics))}' if physics else ''))
     start = last = time.monotonic()
     try:
-        with client.query(experiment.query(quick), timeout=timeout) as solutions:
+        with client.query(experiment.query(quick, physics), timeout=timeout) as solutions:
             for i, solution in enumerate(solutions, 1):
                 now = time.monotonic()
                 run = Run(key=experiment.key_of(solution),

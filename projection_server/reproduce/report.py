@@ -16,10 +16,11 @@ import numpy as np
 
 from projection_server.reproduce.experiments import compare
 from projection_server.reproduce.explain import explain
+from projection_server.reproduce.fidelity import converged
 from projection_server.simulation.errors import ProjectionError
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Sequence
+    from collections.abc import Callable, Mapping, Sequence
 
     from projection_server.reproduce.experiments import Experiment, Result, Run
 
@@ -30,9 +31,10 @@ OUTCOME_COLORS = {'ok': '#4caf50', 'slip': '#ff9800', 'break': '#e53935', 'fail'
 MISSING_COLOR = '#d0d0d0'
 
 
-def format_table(result: Result) -> str:
+def format_table(result: Result, reference: Result | None = None) -> str:
     """The experiment's table in the paper's layout, each cell ``paper/ours`` (``*``: differs),
-    followed by the agreement line and the line on why the cells differ."""
+    followed by the agreement line (and that with a finer ``reference`` run of the same
+    query) and the line on why the cells differ."""
     exp = result.experiment
     if result.skipped:
         return f'{exp.title}: skipped: {result.skipped}'
@@ -42,6 +44,8 @@ def format_table(result: Result) -> str:
     if result.error:
         lines.append(f'stopped early: {result.error}')
     lines.append(compare(result).summary())
+    if reference is not None:
+        lines.append(converged(result, reference).summary())
     lines.append(f'why: {explain(result)}')
     return '\n'.join(lines)
 
@@ -116,8 +120,12 @@ def markdown_table(result: Result) -> str:
 
 
 def write_report(results: Sequence[Result], out: str | Path, *, frames: bool = True,
-                 log: Callable[[str], None] = print) -> Path:
-    """Write ``out/report.md`` with grids, tables and key frames; return its path."""
+                 log: Callable[[str], None] = print,
+                 references: Mapping[str, Result] | None = None) -> Path:
+    """Write ``out/report.md`` with grids, tables and key frames; return its path.
+
+    ``references`` maps an experiment's key to the same query run at finer physics
+    settings: its agreement is shown beside the agreement with the paper."""
     from projection_server.reproduce import render
 
     out = Path(out)
@@ -134,8 +142,12 @@ def write_report(results: Sequence[Result], out: str | Path, *, frames: bool = T
         md += ['```', exp.query(result.quick), '```', '',
                f'{len(result.runs)} projections in {result.elapsed:.1f} s'
                + (' (quick grid)' if result.quick else '') + '. '
-               + f'**{compare(result).summary()}**', '',
-               f'Why: {explain(result)}.', '']
+               + f'**{compare(result).summary()}**', '']
+        reference = (references or {}).get(exp.key)
+        if reference is not None:
+            md += [f'Convergence: **{converged(result, reference).summary()}** '
+                   f'({len(reference.runs)} projections in {reference.elapsed:.1f} s).', '']
+        md += [f'Why: {explain(result)}.', '']
         if result.error:
             md += [f'Stopped early: `{result.error}`', '']
         if exp.qualitative and result.runs:
