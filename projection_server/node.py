@@ -10,8 +10,13 @@ Services (relative to the node's name, by default ``/projection_server/...``):
 
 from __future__ import annotations
 
+import functools
 import json
+import logging
+import os
+from pathlib import Path
 import sys
+import threading
 
 from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQuery
 import rclpy
@@ -22,8 +27,8 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from std_srvs.srv import Trigger
 
 from projection_server import projection, prolog_bridge
-from projection_server.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryManager,
-                                       ServerLimits)
+from projection_server.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryEvent,
+                                       QueryManager, ServerLimits)
 
 __all__ = ['ProjectionServerNode', 'main']
 
@@ -35,6 +40,52 @@ _STATUS = {'solution': PrologNextSolution.Response.OK,
            'none': PrologNextSolution.Response.NO_SOLUTION,
            'wrong_id': PrologNextSolution.Response.WRONG_ID,
            'error': PrologNextSolution.Response.QUERY_FAILED}
+
+# Query text in INFO logs is cut to this many characters.
+LOG_TEXT_PREFIX = 80
+
+
+def _last_resort(callback):
+    """Turn any exception of a service callback into a ``system_error`` response."""
+    @functools.wraps(callback)
+    def guarded(self, request, response):
+        try:
+            return callback(self, request, response)
+        except Exception as exc:  # noqa: BLE001 - the node must keep serving
+            self.get_logger().error(f'{callback.__name__} failed: {type(exc).__name__}: {exc}')
+            message = f'internal error: {type(exc).__name__}: {exc}'
+            for name, value in (('ok', False), ('error_kind', 'system_error'),
+                                ('message', message),
+                                ('status', PrologNextSolution.Response.QUERY_FAILED)):
+                if hasattr(response, name):
+                    try:
+                        setattr(response, name, value)
+                    except (TypeError, ValueError, AssertionError):
+                        pass
+            return response
+    return guarded
+
+
+class _RosLogHandler(logging.Handler):
+    """Forwards the package's Python log records (e.g. the worker pool's) to rclpy."""
+
+    def __init__(self, logger):
+        super().__init__()
+        self._logger = logger
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            text = record.getMessage()
+            if record.levelno >= logging.ERROR:
+                self._logger.error(text)
+            elif record.levelno >= logging.WARNING:
+                self._logger.warning(text)
+            elif record.levelno >= logging.INFO:
+                self._logger.info(text)
+            else:
+                self._logger.debug(text)
+        except Exception:  # noqa: BLE001 - logging must not raise
+            pass
 
 
 class ProjectionServerNode(Node):
@@ -61,12 +112,17 @@ class ProjectionServerNode(Node):
             description='Bags kept in bag_dir; the oldest are deleted first', read_only=True))
         self.add_on_set_parameters_callback(self._check_parameters)
 
+        bag_dir = self.get_parameter('bag_dir').value or None
+        _check_bag_dir(Path(bag_dir).expanduser() if bag_dir else projection.default_bag_dir())
+        self._log_handler = _RosLogHandler(self.get_logger())
+        logging.getLogger('projection_server').addHandler(self._log_handler)
+        logging.getLogger('projection_server').setLevel(logging.INFO)
         projection.configure(
-            bag_dir=self.get_parameter('bag_dir').value or None,
+            bag_dir=bag_dir,
             workers=int(self.get_parameter('projection_workers').value),
             retention={'max_bags': int(self.get_parameter('max_bags').value)})
         prolog_bridge.load()
-        self.queries = QueryManager(self._limits())
+        self.queries = QueryManager(self._limits(), on_event=self._log_query)
 
         group = ReentrantCallbackGroup()
         self.create_service(PrologQuery, '~/query', self._on_query, callback_group=group)
@@ -102,7 +158,21 @@ class ProjectionServerNode(Node):
             self.queries.limits = self._limits(changes)
         return SetParametersResult(successful=True)
 
+    def _log_query(self, e: QueryEvent) -> None:
+        """Errors at INFO, successes at DEBUG; the query text only as a bounded prefix."""
+        text = e.text if len(e.text) <= LOG_TEXT_PREFIX else e.text[:LOG_TEXT_PREFIX] + '...'
+        what = (f'query {e.id!r} ({e.mode}) {e.event} after {e.duration:.3f} s: '
+                + (f'error {e.kind}' if e.kind else f'{e.solutions} solution(s)'))
+        logger = self.get_logger()
+        if e.event == 'abandoned':
+            logger.warning(f'{what}; its engine is being interrupted: {text!r}')
+        elif e.kind or e.event == 'reaped':
+            logger.info(f'{what}: {text!r}')
+        else:
+            logger.debug(f'{what}: {text!r}')
+
     # -- service callbacks: request -> plain call -> response ------------------------
+    @_last_resort
     def _on_query(self, request, response):
         mode = _MODES.get(request.mode)
         answer = self.queries.query(mode or f'mode {request.mode}', request.id, request.query,
@@ -116,16 +186,19 @@ class ProjectionServerNode(Node):
         response.truncated = answer.truncated
         return response
 
+    @_last_resort
     def _on_next(self, request, response):
         outcome = self.queries.next_solution(request.id)
-        response.status = _STATUS[outcome.status]
+        response.status = _STATUS.get(outcome.status, PrologNextSolution.Response.QUERY_FAILED)
         response.solution = outcome.bindings
         response.error_kind = outcome.kind
         response.message = outcome.message
         return response
 
+    @_last_resort
     def _on_finish(self, request, response):
         try:
+            self.queries.check_id(request.id)
             response.closed = self.queries.finish(request.id)
             response.ok = True
             n = response.closed
@@ -135,16 +208,45 @@ class ProjectionServerNode(Node):
             response.message = exc.message
         return response
 
+    @_last_resort
     def _on_ping(self, request, response):
         response.success = True
-        response.message = json.dumps(self.queries.stats())
+        response.message = json.dumps({**self.queries.stats(), **_process_stats()})
         return response
 
     def destroy_node(self):
         if hasattr(self, 'queries'):
             self.queries.shutdown()
+        if hasattr(self, '_log_handler'):
+            logging.getLogger('projection_server').removeHandler(self._log_handler)
         projection.shutdown()
         super().destroy_node()
+
+
+def _process_stats() -> dict[str, int]:
+    """The node process's id, threads and resident memory (for monitoring and leak tests)."""
+    stats = {'pid': os.getpid(), 'threads': threading.active_count()}
+    try:
+        with open('/proc/self/statm', encoding='ascii') as f:
+            stats['rss_kib'] = int(f.read().split()[1]) * os.sysconf('SC_PAGE_SIZE') // 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return stats
+
+
+def _check_bag_dir(path: Path) -> None:
+    """Refuse to start with a bag directory that cannot be one."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise StartupError(f'bag_dir {str(path)!r} is not a usable directory: '
+                           f'{exc.strerror or exc}') from exc
+    if not path.is_dir():
+        raise StartupError(f'bag_dir {str(path)!r} is not a directory')
+
+
+class StartupError(Exception):
+    """The node cannot start with its parameters."""
 
 
 def main(args=None) -> int:
@@ -159,7 +261,7 @@ def main(args=None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except prolog_bridge.BridgeError as exc:
+    except (prolog_bridge.BridgeError, StartupError) as exc:
         print(f'projection_server: {exc}', file=sys.stderr)
         return 1
     finally:

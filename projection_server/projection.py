@@ -7,6 +7,10 @@ variable ``PROJECTION_SERVER_BAG_DIR``, else ``~/.cache/projection_server/bags``
     >>> path = simulate(scenario, 'grasp_object', {'force': 5.0, 'position': 0.0}, 60.0)
     >>> timeline(path)['events']
 
+Projections are owned by the query that asks for them: a query's thread calls
+:func:`set_owner` once (Prolog called through janus runs in that thread), the projections
+it submits are tagged with that owner, and :func:`cancel` stops them and its waits.
+
 The worker that ran a projection also made its timeline; :func:`simulate` keeps it until
 :func:`timeline` hands it over (once), so the bag is read back only for older logs.
 """
@@ -40,6 +44,8 @@ __all__ = [
     'prefetch',
     'programs',
     'project',
+    'release',
+    'set_owner',
     'shutdown',
     'simulate',
     'submit',
@@ -57,6 +63,10 @@ _config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None,
 # query that never asks for its timelines must not grow the process).
 _timelines: OrderedDict[str, dict[str, Any]] = OrderedDict()
 _KEEP_TIMELINES = 64
+# The owner of the calling thread's projections (set_owner), and a stop event per owner
+# that makes its waits end at once when it is cancelled.
+_owner = threading.local()
+_stops: dict[str, threading.Event] = {}
 
 
 def default_bag_dir() -> Path:
@@ -106,7 +116,8 @@ def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
             ``invalid_parameters``, ``timeout``, ``worker_crashed``, ``simulation_failed``,
             ``cancelled``...
     """
-    result = _wait(submit(scenario, program, params, timeout, owner, physics))
+    owner = owner if owner is not None else _thread_owner()
+    result = _wait(submit(scenario, program, params, timeout, owner, physics), owner)
     return {'bag': result.bag, 'timeline': result.timeline}
 
 
@@ -115,7 +126,8 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
              physics: Mapping[str, Any] | None = None) -> str:
     """Like :func:`project`, but return the path of the bag and keep the timeline for
     :func:`timeline`."""
-    result = _wait(submit(scenario, program, params, timeout, owner, physics))
+    owner = owner if owner is not None else _thread_owner()
+    result = _wait(submit(scenario, program, params, timeout, owner, physics), owner)
     if result.timeline is not None:
         with _lock:
             _timelines[result.bag] = result.timeline
@@ -149,7 +161,7 @@ def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
     :func:`project` of the same projection waits for the same future.
     """
     job = Job.checked(scenario, program, params, physics)
-    return _get_backend().submit(job, timeout, owner)
+    return _get_backend().submit(job, timeout, owner if owner is not None else _thread_owner())
 
 
 def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
@@ -172,10 +184,36 @@ def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str,
 
 
 def cancel(owner: str) -> int:
-    """Cancel the unfinished projections that only ``owner`` asked for; how many."""
+    """Cancel the unfinished projections that only ``owner`` asked for; how many.
+
+    ``owner``'s waits in :func:`project` and :func:`simulate` end at once with kind
+    ``cancelled``, also for projections that run on because another owner wants them.
+    """
     with _lock:
         backend = _backend
+        _stops.setdefault(owner, threading.Event()).set()
     return backend.cancel(owner) if backend is not None else 0
+
+
+def set_owner(owner: str | None) -> None:
+    """Make ``owner`` the owner of the projections the calling thread submits without one.
+
+    A query's thread calls this once with a token unique to the query; None clears it.
+    """
+    _owner.name = owner
+    if owner is not None:
+        with _lock:
+            _stops.setdefault(owner, threading.Event())
+
+
+def release(owner: str) -> None:
+    """Forget ``owner`` once its query has ended."""
+    with _lock:
+        _stops.pop(owner, None)
+
+
+def _thread_owner() -> str | None:
+    return getattr(_owner, 'name', None)
 
 
 def workers() -> int:
@@ -204,10 +242,14 @@ def shutdown() -> None:
         old.close()
 
 
-def _wait(future: Future[ProjectionResult]) -> ProjectionResult:
+def _wait(future: Future[ProjectionResult], owner: str | None = None) -> ProjectionResult:
+    with _lock:
+        stop = _stops.get(owner) if owner is not None else None
     while True:
+        if stop is not None and stop.is_set():
+            raise ProjectionError('cancelled', 'the query waiting for it was cancelled')
         try:
-            return future.result(timeout=_POLL)
+            return future.result(timeout=_POLL if stop is None else 0.05)
         except TimeoutError:
             with _lock:
                 if _backend is None:

@@ -25,6 +25,7 @@ __all__ = [
     'check',
     'detach_engine',
     'interrupt',
+    'is_abort',
     'load',
     'prolog_dir',
     'solutions',
@@ -113,6 +114,17 @@ def interrupt(thread_id: int) -> bool:
         return bool(_j().query_once('catch(thread_signal(Id, abort), _, fail)',
                                     {'Id': thread_id})['truth'])
     except _j().PrologError:
+        return False
+
+
+def is_abort(exc: BaseException) -> bool:
+    """Whether ``exc`` (raised by a janus call) is Prolog's abort, not an error of the goal."""
+    janus = _j()
+    if not isinstance(exc, janus.PrologError) or exc.term is None:
+        return False
+    try:
+        return repr(exc) in ("'$aborted'", 'unwind(abort)')
+    except Exception:  # noqa: BLE001 - the engine may be going away
         return False
 
 

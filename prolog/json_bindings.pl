@@ -3,10 +3,10 @@
             term_json/3,                % +Term, +VarNames, -JsonTerm
             json_text/2                 % +JsonTerm, -JsonText
           ]).
-:- autoload(library(apply), [foldl/4, maplist/3]).
-:- autoload(library(error), [must_be/2, domain_error/2]).
-:- autoload(library(lists), [reverse/2]).
-:- autoload(library(http/json), [json_write/3]).
+:- use_module(library(apply), [foldl/4, maplist/3]).
+:- use_module(library(error), [must_be/2, domain_error/2]).
+:- use_module(library(lists), [reverse/2]).
+:- use_module(library(http/json), [json_write/3]).
 
 /** <module> Lossless JSON encoding of query bindings
 
@@ -84,50 +84,53 @@ known_var(V, [V0-Name0|T], Name) :-
 %   Json is the JSON term (see json_text/2) for Term.
 %   VarNames is a list `Var-Name` naming the variables of Term.
 
-term_json(Term, _, _) :-
-    cyclic_term(Term), !,
-    throw(error(representation_error(acyclic_term), _)).
-term_json(Var, VarNames, json([var-Name])) :-
+term_json(Term, VarNames, Json) :-
+    (   cyclic_term(Term)               % once for the whole term: it walks all of it
+    ->  throw(error(representation_error(acyclic_term), _))
+    ;   json_(Term, VarNames, Json)
+    ).
+
+json_(Var, VarNames, json([var-Name])) :-
     var(Var), !,
     (   known_var(Var, VarNames, Name0) -> atom_string(Name0, Name) ; Name = "_" ).
-term_json(Int, _, Int) :-
+json_(Int, _, Int) :-
     integer(Int), !.
-term_json(Float, _, Json) :-
+json_(Float, _, Json) :-
     float(Float), !,
     float_json(Float, Json).
-term_json(Rat, _, json([rational-S])) :-
+json_(Rat, _, json([rational-S])) :-
     rational(Rat), !,
     format(string(S), '~w', [Rat]).
-term_json(String, _, json([string-String])) :-
+json_(String, _, json([string-String])) :-
     string(String), !.
-term_json([], _, []) :- !.
-term_json(Atom, _, String) :-
+json_([], _, []) :- !.
+json_(Atom, _, String) :-
     atom(Atom), !,
     atom_string(Atom, String).
-term_json(List, VarNames, Json) :-
+json_(List, VarNames, Json) :-
     is_list(List), !,
     maplist(term_json_(VarNames), List, Json).
-term_json(Dict, VarNames, json([dict-Pairs, tag-TagJson])) :-
+json_(Dict, VarNames, json([dict-Pairs, tag-TagJson])) :-
     is_dict(Dict, Tag), !,
     dict_pairs(Dict, _, KVs),
-    term_json(Tag, VarNames, TagJson),
+    json_(Tag, VarNames, TagJson),
     maplist(pair_json(VarNames), KVs, Pairs).
-term_json(Compound, VarNames, json([functor-Name, args-Args])) :-
+json_(Compound, VarNames, json([functor-Name, args-Args])) :-
     compound(Compound), !,
     compound_name_arguments(Compound, Name0, Args0),
     atom_string(Name0, Name),
     maplist(term_json_(VarNames), Args0, Args).
-term_json(Blob, _, json([blob-Text, type-Type])) :-
+json_(Blob, _, json([blob-Text, type-Type])) :-
     blob(Blob, Type0),
     format(string(Text), '~p', [Blob]),
     atom_string(Type0, Type).
 
 term_json_(VarNames, Term, Json) :-
-    term_json(Term, VarNames, Json).
+    json_(Term, VarNames, Json).
 
 pair_json(VarNames, K-V, [KJ, VJ]) :-
-    term_json(K, VarNames, KJ),
-    term_json(V, VarNames, VJ).
+    json_(K, VarNames, KJ),
+    json_(V, VarNames, VJ).
 
 float_json(F, Json) :-
     (   F =:= inf -> Json = json([float-"inf"])

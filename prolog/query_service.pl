@@ -3,9 +3,12 @@
             query_solution/3,           % +Text, +Options, -Result
             error_report/2              % +Error, -Report
           ]).
-:- autoload(library(error), [must_be/2]).
-:- autoload(library(sandbox), [safe_goal/1]).
-:- autoload(library(time), [alarm/4, install_alarm/2, uninstall_alarm/1, remove_alarm/1]).
+% Loaded eagerly, not autoloaded: an abort that lands while a library is being
+% autoloaded leaves it half loaded for every later query.
+:- use_module(library(error), [must_be/2]).
+:- use_module(library(sandbox), [safe_goal/1]).
+:- use_module(library(time), [alarm/4, install_alarm/2, uninstall_alarm/1, remove_alarm/1]).
+:- use_module(library(modules), [in_temporary_module/3]).
 :- use_module(json_bindings, [bindings_json/2, term_json/3, json_text/2]).
 
 /** <module> Running query text for the ROS query service
@@ -24,6 +27,13 @@ R = _{status: "solution", bindings: "{\"X\":1}"}.
 An error ends the query: its last result is `_{status: "error", kind: K,
 message: M, error: J}` where K is the error kind (syntax_error,
 existence_error, ..., timeout) and J the error term in the binding encoding.
+
+Each query runs in its own temporary module, created for it and deleted when
+the query is closed. What a query asserts, the operators and flags it sets
+for its module, stay there: one client's query cannot change what another
+client's query means. Module-qualified asserts (e.g. of hooks in `user`) are
+refused by the sandbox. In the query's module sleep/1 sleeps in short slices,
+so that a time limit or a cancellation stops it within a tenth of a second.
 */
 
 %!  query_check(+Text:text, +Options:dict, -Result:dict) is det.
@@ -32,7 +42,8 @@ existence_error, ..., timeout) and J the error term in the binding encoding.
 %   is `_{status: "ok"}` or an error result as for query_solution/3.
 
 query_check(Text, Options, Result) :-
-    catch(( prepare(Text, Options, _, _), Result = _{status: "ok"} ),
+    catch(in_temporary_module(M, query_module(M),
+                              ( prepare(M, Text, Options, _, _), Result = _{status: "ok"} )),
           E, error_report(E, Result)).
 
 %!  query_solution(+Text:text, +Options:dict, -Result:dict) is nondet.
@@ -40,39 +51,125 @@ query_check(Text, Options, Result) :-
 %   Result is a solution of the goal in Text, or the error that ended it.
 %   Options:
 %     - timeout: seconds each solution may take (0 or less: no limit)
-%     - sandbox: `true` refuses goals that library(sandbox) cannot prove safe
+%     - sandbox: `true` refuses goals that library(sandbox) cannot prove
+%       safe; `false` (or janus' `@false`) runs any goal
+%     - stack_limit: bytes of Prolog stacks this engine may use
+%     - max_answer: most cells (roughly 8 bytes each) an answer may have
+%
+%   The query runs in a temporary module that is deleted when the query is
+%   closed.
 
 query_solution(Text, Options, Result) :-
-    catch(solve(Text, Options, Json), E, true),
+    engine_limits(Options),
+    in_temporary_module(M, query_module(M), query_solution(M, Text, Options, Result)).
+
+query_solution(M, Text, Options, Result) :-
+    catch(solve(M, Text, Options, Json), E, true),
     (   var(E)
     ->  Result = _{status: "solution", bindings: Json}
     ;   error_report(E, Result)
     ).
 
-solve(Text, Options, Json) :-
-    prepare(Text, Options, Goal, Bindings),
-    (   get_dict(timeout, Options, Limit), number(Limit), Limit > 0
-    ->  limited_call(user:Goal, Limit)
-    ;   call(user:Goal)
-    ),
-    bindings_json(Bindings, Json).
+engine_limits(Options) :-
+    (   get_dict(stack_limit, Options, Limit), integer(Limit), Limit > 0
+    ->  set_prolog_flag(stack_limit, Limit)         % per thread
+    ;   true
+    ).
 
-prepare(Text0, Options, Goal, Bindings) :-
+% The query's module: inherits from user, has its own sleep/1.
+query_module(M) :-
+    redefine_system_predicate(M:sleep(_)),
+    assertz(M:(sleep(Seconds) :- query_service:bounded_sleep(Seconds))),
+    compile_predicates([M:sleep/1]).
+
+solve(M, Text, Options, Json) :-
+    prepare(M, Text, Options, Goal, Bindings),
+    Run = ( M:Goal, encode(Bindings, Options, Json) ),
+    (   get_dict(timeout, Options, Limit), number(Limit), Limit > 0
+    ->  limited_call(Run, Limit)
+    ;   call(Run)
+    ).
+
+encode(Bindings, Options, Json) :-
+    (   get_dict(max_answer, Options, Max), integer(Max), Max > 0,
+        \+ '$term_size'(Bindings, Max, _)
+    ->  throw(error(resource_error(answer_size), context(_, max_answer(Max))))
+    ;   bindings_json(Bindings, Json)
+    ).
+
+prepare(M, Text0, Options, Goal, Bindings) :-
     must_be(text, Text0),
     text_to_string(Text0, Text),
     term_string(Goal, Text, [ variable_names(Bindings),
                               syntax_errors(error),
-                              module(user)
+                              module(M)
                             ]),
     (   Goal == end_of_file
     ->  throw(error(syntax_error(empty_query), string(Text, 0)))
     ;   true
     ),
+    no_trailing_text(Text),
     must_be(callable, Goal),
-    (   get_dict(sandbox, Options, false)
-    ->  true
-    ;   safe_goal(user:Goal)
+    (   sandboxed(Options)
+    ->  safe_goal(M:Goal),
+        (   sub_term(Q, Goal), nonvar(Q), Q = _:S, nonvar(S), S = sleep(_)
+        ->  throw(error(permission_error(call, qualified_sleep, Q), sandbox(Q, [])))
+        ;   true
+        )
+    ;   true
     ).
+
+% janus passes Python False as @false.
+sandboxed(Options) :-
+    \+ ( get_dict(sandbox, Options, Off), ( Off == false ; Off == @(false) ) ).
+
+% One goal per query: text after the first clause's full stop (other than
+% layout and comments) is an error, not silently dropped.
+no_trailing_text(Text) :-
+    setup_call_cleanup(open_string(Text, In),
+                       trailing(In, Rest),
+                       close(In)),
+    (   Rest == none
+    ->  true
+    ;   throw(error(syntax_error(trailing_text), string(Text, Rest)))
+    ).
+
+trailing(In, Rest) :-
+    (   catch(read_term(In, _, [syntax_errors(quiet)]), _, fail)
+    ->  character_count(In, Pos),
+        (   catch(read_term(In, T, [syntax_errors(quiet)]), _, fail), T == end_of_file
+        ->  Rest = none
+        ;   Rest = Pos
+        )
+    ;   Rest = none                     % no full stop: term_string/3 read it all
+    ).
+
+%!  bounded_sleep(+Seconds) is det.
+%
+%   sleep/1 of the query modules: sleeps in slices of at most 0.1 s, so
+%   that signals (time limits, cancellation) are handled between slices.
+%   The embedded Prolog runs without signal handlers, which would let a
+%   signal interrupt system:sleep/1.
+
+bounded_sleep(Seconds) :-
+    must_be(number, Seconds),
+    get_time(Now),
+    End is Now + Seconds,
+    sleep_until(End).
+
+sleep_until(End) :-
+    get_time(Now),
+    Left is End - Now,
+    (   Left =< 0
+    ->  true
+    ;   Slice is min(Left, 0.1),
+        system:sleep(Slice),
+        sleep_until(End)
+    ).
+
+:- multifile sandbox:safe_primitive/1.
+
+sandbox:safe_primitive(query_service:bounded_sleep(_)).
 
 %!  limited_call(:Goal, +Seconds) is nondet.
 %
@@ -102,10 +199,17 @@ limited_call_(Goal, Id, Seconds) :-
 
 error_report(E, _{status: "error", kind: Kind, message: Message, error: Json}) :-
     error_kind(E, Kind),
-    error_message(E, Message),
-    (   catch(term_json(E, [], JsonTerm), _, fail), catch(json_text(JsonTerm, Json), _, fail)
-    ->  true
-    ;   Json = ""
+    (   '$term_size'(E, 10000, _)
+    ->  error_message(E, Message),
+        (   catch(term_json(E, [], JsonTerm), _, fail),
+            catch(json_text(JsonTerm, Json), _, fail)
+        ->  true
+        ;   Json = ""
+        )
+    ;   % A culprit too large to report: its outline only.
+        format(string(Outline), '~W', [E, [max_depth(8), quoted(true), portray(false)]]),
+        format(string(Message), 'Error term too large to report in full: ~s', [Outline]),
+        Json = ""
     ).
 
 error_kind(time_limit_exceeded(_), "timeout") :- !.
@@ -152,3 +256,10 @@ prolog:message(time_limit_exceeded(Seconds)) -->
     [ 'Time limit exceeded: no solution within ~w seconds'-[Seconds] ].
 prolog:message(error(syntax_error(empty_query), _)) -->
     [ 'Syntax error: the query is empty' ].
+prolog:message(error(syntax_error(trailing_text), string(_, Pos))) -->
+    [ 'Syntax error: text after the end of the query at character ~w '-[Pos],
+      '(one goal per query; join goals with a comma)' ].
+prolog:message(error(resource_error(answer_size), context(_, max_answer(Max)))) -->
+    [ 'Resource error: the answer has more than ~D cells (max_answer)'-[Max] ].
+prolog:message(error(permission_error(call, qualified_sleep, _), _)) -->
+    [ 'No permission to call a module-qualified sleep/1: call sleep/1 unqualified' ].

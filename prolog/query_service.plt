@@ -47,4 +47,39 @@ test(check_reports_syntax, K == "syntax_error") :-
 test(sandbox_off_allows, S == "solution") :-
     once(query_solution("shell(true)", _{sandbox: false}, R)), get_dict(status, R, S).
 
+test(sandbox_off_as_janus_passes_it, S == "solution") :-
+    once(query_solution("shell(true)", _{sandbox: @(false)}, R)), get_dict(status, R, S).
+test(trailing_text_is_a_syntax_error, K == "syntax_error") :-
+    sols("X = 1. garbage ((((", [R]), get_dict(kind, R, K).
+test(a_second_goal_is_a_syntax_error, K == "syntax_error") :-
+    sols("X = 1. Y = 2", [R]), get_dict(kind, R, K).
+test(a_trailing_comment_is_allowed, S == "solution") :-
+    sols("X = 1. % a comment", [R]), get_dict(status, R, S).
+test(asserts_stay_in_the_query_module, Rs == []) :-
+    sols("assertz(exception(undefined_predicate, _, fail))", [_]),
+    sols("assertz(portray(_))", [_]),
+    sols("assertz(poisoned(1))", [_]),
+    findall(x, ( catch(user:portray(_), _, fail)
+               ; catch(user:exception(undefined_predicate, _, _), _, fail)
+               ; current_predicate(user:poisoned/1) ), Rs).
+test(qualified_asserts_are_refused, K == "permission_error") :-
+    sols("assertz(user:portray(_))", [R]), get_dict(kind, R, K).
+test(sleep_is_cut_by_the_time_limit, [K-Fast == "timeout"-true]) :-
+    get_time(T0),
+    sols_t("sleep(5)", 0.3, [R]), get_dict(kind, R, K),
+    get_time(T1), ( T1 - T0 < 1.5 -> Fast = true ; Fast = T1-T0 ).
+test(qualified_sleep_refused, K == "permission_error") :-
+    sols("system:sleep(5)", [R]), get_dict(kind, R, K).
+test(answers_above_max_answer_are_refused, K == "resource_error") :-
+    findall(R, query_solution("numlist(1, 1000, L)", _{max_answer: 100}, R), [R]),
+    get_dict(kind, R, K).
+test(deep_answers_encode_in_linear_time, S == "solution") :-
+    sols("numlist(1, 30000, L), foldl([_,A,f(A)]>>true, L, a, T)", [R]),
+    get_dict(status, R, S).
+test(huge_error_terms_are_outlined, K == "type_error") :-
+    sols("numlist(1, 100000, L), atom_length(f(L), _)", [R]),
+    get_dict(kind, R, K), get_dict(message, R, M), string_length(M, N), N < 2000.
+
+sols_t(Text, T, Rs) :- findall(R, query_solution(Text, _{timeout: T}, R), Rs).
+
 :- end_tests(query_service).
