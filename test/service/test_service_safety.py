@@ -265,3 +265,25 @@ def test_memory_and_threads_come_back_after_a_burst(call):
     # Executor threads (at most max_engines + 4) are kept; no thread per query is.
     assert after['threads'] <= max(before['threads'], 6 + 4 + 4), (before, after)
     assert after['rss_kib'] - before['rss_kib'] < 30 * 1024, (before, after)
+
+
+def test_finish_stops_a_running_projection_query_within_a_second(call, node):
+    import rclpy
+    q = node.create_client(PrologQuery, '/projection_server/query')
+    assert q.wait_for_service(timeout_sec=10)
+    # Forces no other test simulates, so nothing is cached and every one must be simulated.
+    text = ('make_projection(grasping, grasp_object, '
+            '[(F, force, [2.11, 2.12, 2.13, 2.14, 2.15, 2.16, 2.17, 2.18])], _), fail')
+    future = q.call_async(Q(mode=Q.ONCE, id='projecting/1', query=text, timeout=120.0))
+    time.sleep(4.0)  # the first projections are running
+    assert not future.done()
+    start = time.monotonic()
+    assert call(PrologFinish, 'finish', PrologFinish.Request(id='projecting/1')).closed == 1
+    rclpy.spin_until_future_complete(node, future, timeout_sec=10)
+    stopped = time.monotonic() - start
+    assert future.done() and future.result().error_kind == 'cancelled'
+    assert stopped < 1.0, f'answered {stopped:.2f} s after finish'
+    freed = engines_back_to(call, 0, within=1.0)
+    print(f'cancel answered after {stopped:.3f} s; engine free after {freed:.3f} s')
+    node.destroy_client(q)
+    alive(call)
