@@ -130,15 +130,13 @@ bind_choice(Values, choice(Var, Name, _)) :-
     get_dict(Name, Values, Var).
 
 % While the workers simulate parametrization I, the next Depth ones are
-% queued, so a query that backtracks finds them done or under way.
+% queued, so a query that backtracks finds them done or under way.  I itself
+% is queued first: behind its successors, it would wait for one of them.
 prefetch(Description, Program, All, I, Depth, Timeout, Physics) :-
-    From is I + 1, To is I + Depth,
-    findall(V, ( between(From, To, J), nth0(J, All, V) ), Next),
-    (   Next == []
-    ->  true
-    ;   py_call('projection_server.projection':prefetch(Description, Program, Next,
-                                                        Timeout, physics=Physics), _)
-    ).
+    To is I + Depth,
+    findall(V, ( between(I, To, J), nth0(J, All, V) ), Next),
+    py_call('projection_server.projection':prefetch(Description, Program, Next,
+                                                    Timeout, physics=Physics), _).
 
 projection_options(_, Timeout, Timeout, _{}) :-
     number(Timeout), !,
