@@ -13,9 +13,11 @@
               instantiation_error/1 ]).
 :- autoload(library(lists), [member/2, nth0/3, numlist/3]).
 :- autoload(library(option), [option/3]).
+:- autoload(library(aggregate), [aggregate_all/3]).
+:- autoload(library(solution_sequences), [limit/2]).
 :- use_module(library(janus), [py_call/2]).
 :- use_module(scenario, [scenario_description/2]).
-:- use_module(timeline, [timeline_create/2, timeline_exists/1]).
+:- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1]).
 
 /** <module> Simulation-based temporal projection (the paper's section III-B)
 
@@ -284,10 +286,27 @@ translate_(Log0, Timeline) :-
                    (   log_timeline(Log, Timeline0), timeline_exists(Timeline0)
                    ->  Timeline = Timeline0
                    ;   timeline_create(Data, Timeline),
-                       retractall(log_timeline(Log, _)),
-                       assertz(log_timeline(Log, Timeline))
+                       remember_timeline(Log, Timeline)
                    ))
     ;   existence_error(file, Log)
+    ).
+
+% translate/2 keeps the timelines of the most recently translated bags, as
+% many as the flag projection_max_timelines says (default 256); older ones
+% are removed, so that a query over thousands of parametrizations runs in
+% bounded memory.  Translating such a bag again makes its timeline anew.
+:- create_prolog_flag(projection_max_timelines, 256, [type(integer), keep(true)]).
+
+remember_timeline(Log, Timeline) :-
+    retractall(log_timeline(Log, _)),
+    assertz(log_timeline(Log, Timeline)),
+    current_prolog_flag(projection_max_timelines, Max),
+    aggregate_all(count, log_timeline(_, _), N),
+    (   N > Max
+    ->  Excess is N - Max,
+        forall(limit(Excess, retract(log_timeline(_, Old))),
+               (   timeline_exists(Old) -> timeline_remove(Old) ; true ))
+    ;   true
     ).
 
 %!  projection_program(?Program, -FormalParams:list) is nondet.

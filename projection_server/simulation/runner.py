@@ -98,6 +98,7 @@ class _Recording:
 
     def __init__(self, writer: BagWriter):
         self._writer = writer
+        self.new, self.type = writer.new, writer.type   # called per message: no __getattr__
         self.messages: list[tuple[str, int, Any]] = []
 
     def __getattr__(self, name: str) -> Any:

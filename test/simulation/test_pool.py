@@ -135,6 +135,22 @@ def test_a_queued_projection_of_a_cancelled_owner_fails_as_cancelled(pool, make_
     assert os.path.isdir(pool.run(job(make_scenario, 2.0), timeout=60.0))
 
 
+def test_a_worker_is_replaced_after_its_share_of_projections(make_scenario, tmp_path):
+    from projection_server.workers.local import WorkerPool
+
+    with WorkerPool(tmp_path, workers=1, max_projections=2) as pool:
+        pool.run(job(make_scenario, 1.0), timeout=60.0)
+        first = pool.worker_pids
+        pool.run(job(make_scenario, 1.5), timeout=60.0)
+        deadline = time.monotonic() + 30.0
+        while pool.worker_pids in (first, [None]):   # replaced at once, with no job waiting
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        second = pool.worker_pids
+        assert os.path.isdir(pool.run(job(make_scenario, 2.0), timeout=60.0))
+        assert pool.worker_pids == second
+
+
 def test_retention_deletes_the_least_recently_used_bags(tmp_path):
     for i, name in enumerate(['old', 'mid', 'new']):
         (tmp_path / name).mkdir()

@@ -7,7 +7,10 @@ must never be forked) that keeps one warm DIRECT-mode PyBullet client
 ``(result, ok)``; exceptions travel back as :class:`ProjectionError`. Every wait in the
 parent has a time limit. A worker that crashes or runs over its projection's time limit is
 terminated, its projection fails with kind ``worker_crashed`` or ``timeout``, and a new
-worker is started for the next projection. Each projection builds a fresh world.
+worker is started for the next projection. Each projection builds a fresh world. PyBullet
+keeps about 0.1 MB per world it has built, even after ``resetSimulation``, so a worker is
+replaced by a fresh one after ``max_projections`` projections (at once, not when the next
+projection comes).
 
 The worker translates its projection into a timeline from the samples it has in memory and
 sends it back with the bag, so the parent never reads the bag it just had written. Bags go
@@ -68,13 +71,15 @@ class WorkerPool:
     def __init__(self, bag_dir: str | os.PathLike[str], workers: int = 1,
                  settings: Settings | None = None,
                  retention: Retention | Mapping[str, Any] | None = None,
-                 start_method: str = 'forkserver', startup_timeout: float = 60.0):
+                 start_method: str = 'forkserver', startup_timeout: float = 60.0,
+                 max_projections: int = 200):
         if not isinstance(workers, int) or workers < 1:
             raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
         self.store = BagStore(bag_dir, retention)
         self.bag_dir = self.store.bag_dir
         self.settings = settings if settings is not None else load_settings()
         self.startup_timeout = startup_timeout
+        self.max_projections = max_projections
         self._context = multiprocessing.get_context(start_method)
         self._queue: queue.Queue[_Request | None] = queue.Queue()
         self._requests: dict[str, _Request] = {}
@@ -212,6 +217,7 @@ class _Slot:
         self._pool = pool
         self._process: Any = None
         self._conn: Any = None
+        self._projections = 0   # made by the running worker process
         self.request: _Request | None = None
         self._thread = threading.Thread(target=self._loop, name=f'projection-worker-{index}',
                                         daemon=True)
@@ -261,8 +267,15 @@ class _Slot:
                             'simulation_failed', f'{type(exc).__name__}: {exc}'))
                 else:
                     request.future.set_result(result)
+                    self._projections += 1
                 finally:
                     self.request = None
+                if self._projections >= pool.max_projections and not pool._closed:
+                    self._stop()   # and start its successor while no one waits for it
+                    try:
+                        self._ensure_worker()
+                    except ProjectionError:
+                        pass   # the next projection tries again and reports it
         finally:
             self._stop()
 
@@ -322,6 +335,7 @@ class _Slot:
         process.start()
         child.close()
         self._process, self._conn = process, parent
+        self._projections = 0
         message, ok = self._receive(self._pool.startup_timeout, 'worker start-up')
         if not ok:
             self._kill()
