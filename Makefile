@@ -21,7 +21,9 @@ query: setup
 	@tools/with_env.sh prolog_query "$$Q" $(ARGS)
 
 bench: setup
-	@tools/with_env.sh python bench/query_latency.py $(ARGS)
+	@tools/with_env.sh python bench/query_latency.py
+	@tools/with_env.sh python bench/pipeline_overhead.py
+	@tools/with_env.sh python bench/projection_throughput.py --flat-memory 200
 
 reproduce: setup
 	@tools/with_env.sh projection_reproduce --out reports $(ARGS)

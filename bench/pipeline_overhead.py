@@ -1,0 +1,192 @@
+"""What a projection costs beyond its physics: the full pipeline against bare Bullet stepping.
+
+Runs the same projections twice in one process, alternating:
+
+* **pipeline**: what a worker and the node do for one projection: build the world, run the
+  program with the object models, monitor, write the MCAP bag, make the timeline from the
+  samples in memory, and store it in Prolog (``timeline_create/2``, as ``translate/2``
+  does), with a warm simulator (:class:`projection_server.simulation.runner.Simulator`);
+* **floor**: the same world and program, stepped bare: ``stepSimulation`` and, for each
+  body with an object model (the egg), one contact query per step; nothing else (no
+  object model computations, no monitoring, no bag).
+
+Prints the medians per program, the split of the pipeline into its parts, and the ratio
+pipeline / floor. Scenarios come from the knowledge base (``grasping``, ``pouring``).
+
+    tools/with_env.sh python bench/pipeline_overhead.py --repeat 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+import platform
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+GRASPS = [{'force': f, 'position': p} for p in (-0.02, 0.0, 0.02) for f in (1, 5, 11)]
+POURS = [{'angle': 1.99, 'time': 0.5, 'position': 0.0}]
+
+
+def scenario(name: str) -> dict:
+    """The knowledge base's scenario description, as simulate/5 passes it to Python."""
+    import janus_swi as janus
+
+    return janus.query_once('scenario:scenario_description(S, D)', {'S': name})['D']
+
+
+def to_prolog(timeline: dict) -> float:
+    """Seconds to store ``timeline`` in Prolog (then it is removed again)."""
+    import janus_swi as janus
+
+    start = time.perf_counter()
+    janus.query_once('timeline:timeline_create(D, TL)', {'D': timeline})
+    elapsed = time.perf_counter() - start
+    janus.query_once('timeline:timeline_exists(TL), timeline:timeline_remove(TL)')
+    return elapsed
+
+
+def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
+    from projection_server.timeline import translate
+
+    made = {}
+    original = translate.translate_messages
+
+    def timed(*args):   # the translation's share of Simulator.run
+        start = time.perf_counter()
+        made['timeline'] = original(*args)
+        made['translate'] = time.perf_counter() - start
+        return made['timeline']
+
+    translate.translate_messages = timed
+    try:
+        start = time.perf_counter()
+        simulator.run(job, settings, bag)
+        run = time.perf_counter() - start
+    finally:
+        translate.translate_messages = original
+    prolog = to_prolog(made['timeline'])
+    return {'total': run + prolog, 'simulate+log': run - made['translate'],
+            'translate': made['translate'], 'prolog': prolog}
+
+
+def floor(client, job, settings) -> float:
+    """Bare stepping of the job's world and program [s]."""
+    from projection_server.simulation.programs import get as get_program
+    from projection_server.simulation.scenario import parse_scenario
+    from projection_server.simulation.world import build_world
+
+    start = time.perf_counter()
+    parsed = parse_scenario(job.scenario)
+    physics = build_world(client, parsed, settings)
+    task = get_program(job.program).create(physics, parsed, dict(job.params),
+                                           np.random.default_rng(0))
+    steps = math.ceil(task.duration * settings.physics.rate_hz - 1e-9)
+    control = settings.control.steps_per_control
+    modelled = [physics.body(model.name).body_id for model in physics.models]
+    for step in range(steps):
+        if step % control == 0:
+            task.control(physics)
+        client.stepSimulation()
+        physics.step_count += 1
+        for body in modelled:
+            client.getContactPoints(bodyA=body)
+    return time.perf_counter() - start
+
+
+_bare_client = None
+
+
+def _bare_start() -> None:
+    global _bare_client
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+
+    _bare_client = BulletClient(connection_mode=pybullet.DIRECT)
+
+
+def _bare_run(job, settings) -> float:
+    return floor(_bare_client, job, settings)
+
+
+def parallel_floor(jobs, settings, workers: int) -> float:
+    """Wall time [s] of bare stepping ``jobs`` in ``workers`` processes at once (started and
+    warmed up before the clock starts): the floor of that many workers on this machine now.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    import multiprocessing
+
+    with ProcessPoolExecutor(workers, multiprocessing.get_context('forkserver'),
+                             initializer=_bare_start) as pool:
+        list(pool.map(_bare_run, jobs[:workers], [settings] * workers))   # warm-up
+        start = time.perf_counter()
+        list(pool.map(_bare_run, jobs, [settings] * len(jobs)))
+        return time.perf_counter() - start
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--repeat', type=int, default=3, help='rounds over all projections')
+    parser.add_argument('--pours', type=int, default=len(POURS), help='pours per round (0-1)')
+    args = parser.parse_args()
+
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+
+    from projection_server import prolog_bridge
+    from projection_server.simulation.job import Job
+    from projection_server.simulation.runner import Simulator
+    from projection_server.simulation.settings import load_settings
+
+    prolog_bridge.load()
+    settings = load_settings()
+    jobs = {'grasp_object': [Job.checked(scenario('grasping'), 'grasp_object', p)
+                             for p in GRASPS],
+            'pour': [Job.checked(scenario('pouring'), 'pour', p)
+                     for p in POURS[:args.pours]]}
+    simulator = Simulator()
+    bare = BulletClient(connection_mode=pybullet.DIRECT)
+    results: dict[str, dict[str, list[float]]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for program, group in jobs.items():
+            for job in group:   # warm-up: imports, assets, serializers
+                pipeline(simulator, job, settings, Path(tmp) / f'warm-{len(os.listdir(tmp))}')
+                floor(bare, job, settings)
+                break
+        for r in range(args.repeat):
+            for program, group in jobs.items():
+                for i, job in enumerate(group):
+                    parts = pipeline(simulator, job, settings, Path(tmp) / f'{program}-{r}-{i}')
+                    row = results.setdefault(program, {})
+                    for name, value in parts.items():
+                        row.setdefault(name, []).append(value)
+                    row.setdefault('floor', []).append(floor(bare, job, settings))
+    simulator.close()
+    bare.disconnect()
+
+    print('pipeline overhead benchmark: full projection pipeline vs bare Bullet stepping')
+    print(f'  settings: {len(jobs["grasp_object"])} grasps ({", ".join(map(str, GRASPS[:2]))}'
+          f', ...) and {len(jobs["pour"])} pour(s) {POURS[:args.pours]}, each run '
+          f'{args.repeat}x both ways, alternating, in one process; physics from '
+          f'config/physics.yaml ({settings.physics.rate_hz} Hz, '
+          f'{settings.physics.solver_iterations} solver iterations); '
+          f'python {platform.python_version()}, {os.cpu_count()} cores, '
+          f'load average {os.getloadavg()[0]:.1f}')
+    for program, row in results.items():
+        med = {name: statistics.median(values) for name, values in row.items()}
+        ratio = statistics.median(t / f for t, f in zip(row['total'], row['floor']))
+        print(f'  {program}: pipeline {med["total"] * 1e3:7.1f} ms (simulate+log '
+              f'{med["simulate+log"] * 1e3:.1f}, translate {med["translate"] * 1e3:.1f}, '
+              f'prolog {med["prolog"] * 1e3:.1f}), floor {med["floor"] * 1e3:7.1f} ms, '
+              f'ratio {ratio:.2f}x (median of {len(row["total"])} pairs)')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
