@@ -83,6 +83,7 @@ def floor(client, job, settings) -> float:
     from projection_server.simulation.world import build_world
 
     start = time.perf_counter()
+    settings = job.settings(settings)   # the program's and the job's own, as a worker has them
     parsed = parse_scenario(job.scenario)
     physics = build_world(client, parsed, settings)
     task = get_program(job.program).create(physics, parsed, dict(job.params),
@@ -174,14 +175,15 @@ def main() -> int:
     print(f'  settings: {len(jobs["grasp_object"])} grasps ({", ".join(map(str, GRASPS[:2]))}'
           f', ...) and {len(jobs["pour"])} pour(s) {POURS[:args.pours]}, each run '
           f'{args.repeat}x both ways, alternating, in one process; physics from '
-          f'config/physics.yaml ({settings.physics.rate_hz} Hz, '
-          f'{settings.physics.solver_iterations} solver iterations); '
+          f'config/physics.yaml; '
           f'python {platform.python_version()}, {os.cpu_count()} cores, '
           f'load average {os.getloadavg()[0]:.1f}')
     for program, row in results.items():
         med = {name: statistics.median(values) for name, values in row.items()}
         ratio = statistics.median(t / f for t, f in zip(row['total'], row['floor']))
-        print(f'  {program}: pipeline {med["total"] * 1e3:7.1f} ms (simulate+log '
+        engine = jobs[program][0].settings(settings).physics
+        print(f'  {program} ({engine.rate_hz} Hz, {engine.solver_iterations} solver '
+              f'iterations): pipeline {med["total"] * 1e3:7.1f} ms (simulate+log '
               f'{med["simulate+log"] * 1e3:.1f}, translate {med["translate"] * 1e3:.1f}, '
               f'prolog {med["prolog"] * 1e3:.1f}), floor {med["floor"] * 1e3:7.1f} ms, '
               f'ratio {ratio:.2f}x (median of {len(row["total"])} pairs)')
