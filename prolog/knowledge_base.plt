@@ -80,7 +80,7 @@ test(robot_refers_to_its_gripper, G == pr2_gripper) :-
 test(mix_refers_to_its_cup, C == cup1) :-
     kb_entity_properties(pancake_mix1, P),
     C = P.container.
-test(counts_are_integers, N == 150) :-
+test(counts_are_integers, N == 300) :-
     kb_entity_properties(pancake_mix1, P),
     N = P.particle_count.
 test(properties_unknown, error(existence_error(entity, dragon))) :-

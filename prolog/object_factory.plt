@@ -33,7 +33,7 @@ test(pancake_mix_is_a_particle_fluid) :-
     E.class == particle_fluid,
     E.properties.container == cup1,
     E.properties.particle_count == 50,
-    E.properties.particle_radius == 0.006.
+    E.properties.particle_radius == 0.0048.
 
 test(unknown_type, error(existence_error(object_type, cake))) :-
     object_model(cake, _{}, _).

@@ -63,7 +63,7 @@ test(pouring_description) :-
     scenario_entity(pouring, pancake_mix1, Mix),
     Mix.class == particle_fluid,
     Mix.properties.container == cup1,
-    Mix.properties.particle_count == 150.
+    Mix.properties.particle_count == 300.
 test(turning_description) :-
     scenario_description(turning, D),
     maplist(get_dict(name), D.entities,
