@@ -320,7 +320,7 @@ class Physics:
     def contacts(self) -> list[ContactSample]:
         """All contacts of the last step between named bodies, one per link pair, sorted."""
         groups: dict[tuple[str, str, str, str], list[tuple[Any, float]]] = {}
-        for point in self.client.getContactPoints():
+        for point in self._contact_points():
             a, b = self.name_of(point[1]), self.name_of(point[2])
             if a is None or b is None or (a == b and a in self.fluids):
                 continue
@@ -345,3 +345,27 @@ class Physics:
                 normal=tuple(normal / norm) if norm > 0 else (0.0, 0.0, 1.0),
                 normal_force=total, friction=tuple(np.asarray(friction, dtype=float))))
         return samples
+
+    def _contact_points(self) -> list[Any]:
+        """The contact points of the last step, but none between two particles of a fluid.
+
+        Those are most of a pour's points and are never reported; with one fluid the points
+        are asked for body by body, for every body that is not one of its particles (a pair
+        of two such bodies once, from its lower id). Bullet keeps a pair's bodies in the
+        order they were created; asked from the later one, PyBullet turns the normal round
+        but not the friction directions, so those are turned here.
+        """
+        if len(self.fluids) != 1:
+            return self.client.getContactPoints()
+        particles = set(next(iter(self.fluids.values())).body_ids)
+        others = sorted(b for b in self._names if b not in particles)
+        solid = set(others)
+        points = []
+        for body in others:
+            for p in self.client.getContactPoints(bodyA=body):
+                if p[2] < body:
+                    if p[2] in solid:
+                        continue
+                    p = (*p[:11], tuple(-x for x in p[11]), p[12], tuple(-x for x in p[13]))
+                points.append(p)
+        return points

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from dataclasses import astuple
 import math
 
 import numpy as np
@@ -209,6 +210,41 @@ def test_the_measures_of_a_pour_converge_at_a_4x_finer_step(pool):
     assert reference['pan'] > COUNT // 10
     for column, value in reference.items():
         assert abs(ours[column] - value) <= REFERENCE_TOLERANCES[column](value), measures
+
+
+def test_the_contacts_of_a_pour_are_those_of_all_points_without_particle_pairs():
+    # Physics.contacts asks Bullet body by body so as not to build the thousands of
+    # particle-particle points of each sample; the samples must be the same.
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+    from projection_server.simulation.settings import load_settings
+    from projection_server.simulation.world import build_world
+
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        settings = load_settings().for_projection('pour')
+        scenario = parse_scenario(POURING)
+        physics = build_world(client, scenario, settings)
+        task = get_program('pour').create(physics, scenario,
+                                          {'angle': 2.14, 'time': 0.0, 'position': -0.09},
+                                          np.random.default_rng(0))
+        for step in range(int(1.6 * settings.physics.rate_hz)):   # the stream is falling
+            if step % settings.control.steps_per_control == 0:
+                task.control(physics)
+            physics.step()
+        fast = physics.contacts()
+        physics._contact_points = client.getContactPoints
+        every = physics.contacts()
+    finally:
+        client.disconnect()
+    assert [c[:4] for c in map(astuple, fast)] == [c[:4] for c in map(astuple, every)]
+    assert {c.body_a for c in fast} >= {'cup1', 'pancake_maker1'}
+    assert any(c.body_a == c.body_b == 'pancake_mix1' for c in every) is False
+    for a, b in zip(fast, every):
+        assert a.normal_force == pytest.approx(b.normal_force, rel=1e-9, abs=1e-12)
+        assert a.position == pytest.approx(b.position, abs=1e-9)
+        assert a.normal == pytest.approx(b.normal, abs=1e-9)
+        assert a.friction == pytest.approx(b.friction, abs=1e-9)
 
 
 def test_principal_axes_of_a_line_point_along_it():
