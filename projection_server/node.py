@@ -110,6 +110,12 @@ class ProjectionServerNode(Node):
             description='Simulation worker processes', read_only=True))
         self.declare_parameter('max_bags', 1000, ParameterDescriptor(
             description='Bags kept in bag_dir; the oldest are deleted first', read_only=True))
+        self.declare_parameter('projection_backend', 'local', ParameterDescriptor(
+            description='Who runs projections: local (worker processes) or ray (Ray actors)',
+            read_only=True, additional_constraints='one of: local, ray'))
+        self.declare_parameter('ray_address', '', ParameterDescriptor(
+            description='Ray cluster for projection_backend ray: auto, ray://host:port or '
+                        'host:port (empty: start a local Ray instance)', read_only=True))
         self.add_on_set_parameters_callback(self._check_parameters)
 
         bag_dir = self.get_parameter('bag_dir').value or None
@@ -120,7 +126,10 @@ class ProjectionServerNode(Node):
         projection.configure(
             bag_dir=bag_dir,
             workers=int(self.get_parameter('projection_workers').value),
-            retention={'max_bags': int(self.get_parameter('max_bags').value)})
+            retention={'max_bags': int(self.get_parameter('max_bags').value)},
+            backend=self.get_parameter('projection_backend').value,
+            ray_address=self.get_parameter('ray_address').value)
+        projection.start()
         prolog_bridge.load()
         self.queries = QueryManager(self._limits(), on_event=self._log_query)
 
@@ -261,7 +270,7 @@ def main(args=None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (prolog_bridge.BridgeError, StartupError) as exc:
+    except (prolog_bridge.BridgeError, StartupError, projection.ProjectionError) as exc:
         print(f'projection_server: {exc}', file=sys.stderr)
         return 1
     finally:

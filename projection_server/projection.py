@@ -48,6 +48,7 @@ __all__ = [
     'set_owner',
     'shutdown',
     'simulate',
+    'start',
     'submit',
     'timeline',
     'workers',
@@ -58,7 +59,7 @@ _POLL = 1.0   # s between checks that the backend still runs while waiting for a
 _lock = threading.Lock()
 _backend: WorkerBackend | None = None
 _config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None,
-                           'backend': 'local'}
+                           'backend': 'local', 'ray_address': None}
 # Timelines of finished projections not yet handed to Prolog, by bag path (bounded: a
 # query that never asks for its timelines must not grow the process).
 _timelines: OrderedDict[str, dict[str, Any]] = OrderedDict()
@@ -79,9 +80,10 @@ def default_bag_dir() -> Path:
 
 def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None = None,
               retention: Retention | Mapping[str, Any] | None = None,
-              backend: str | None = None) -> None:
+              backend: str | None = None, ray_address: str | None = None) -> None:
     """Set where bags go, how many workers run projections, how many bags are kept and
-    which worker backend runs them (``local``).
+    which worker backend runs them (``local`` or ``ray``; ``ray_address`` is the Ray
+    cluster to join, ``''`` for a local Ray instance, see :func:`workers.ray.connect`).
 
     Arguments left as None keep their current value. ``retention`` is a
     :class:`~projection_server.workers.Retention` or a dict with ``max_bags`` and
@@ -92,6 +94,7 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
         if workers is not None and (not isinstance(workers, int) or workers < 1):
             raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
         updates = {'bag_dir': bag_dir, 'workers': workers, 'backend': backend,
+                   'ray_address': ray_address,
                    'retention': Retention.of(retention) if retention is not None else None}
         _config.update({k: v for k, v in updates.items() if v is not None})
         old, _backend = _backend, None
@@ -233,6 +236,16 @@ def physics_settings(program: str | None = None) -> list[dict[str, Any]]:
     return _get_backend().settings.describe_physics(program)
 
 
+def start() -> None:
+    """Start the configured backend now rather than at the first projection (a Ray
+    backend takes seconds to start or join its cluster).
+
+    Raises:
+        ProjectionError: kind ``invalid_settings`` or ``pool_closed`` if it cannot start.
+    """
+    _get_backend()
+
+
 def shutdown() -> None:
     """Stop the process-wide backend (also done at exit)."""
     global _backend
@@ -260,9 +273,12 @@ def _get_backend() -> WorkerBackend:
     global _backend
     with _lock:
         if _backend is None:
+            options = {'retention': _config['retention']}
+            if _config['backend'] == 'ray' and _config['ray_address'] is not None:
+                options['address'] = _config['ray_address']
             _backend = create_backend(_config['backend'],
                                       _config['bag_dir'] or default_bag_dir(),
-                                      _config['workers'], retention=_config['retention'])
+                                      _config['workers'], **options)
         return _backend
 
 

@@ -6,6 +6,7 @@ Map of the package:
   (submit a job -> future of a :class:`ProjectionResult`; cancel; close).
 * :mod:`.bag_store`: the bag directory shared by every backend (names, retention).
 * :mod:`.local`: the ``local`` backend, supervised worker processes on this machine.
+* :mod:`.ray`: the ``ray`` backend, Ray actors on this machine or a Ray cluster.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ if TYPE_CHECKING:
 __all__ = ['BACKENDS', 'BagStore', 'ProjectionResult', 'Retention', 'WorkerBackend',
            'create_backend']
 
-BACKENDS = ('local',)
+BACKENDS = ('local', 'ray')
 
 
 def create_backend(name: str, bag_dir: str | os.PathLike[str], workers: int,
@@ -36,5 +37,9 @@ def create_backend(name: str, bag_dir: str | os.PathLike[str], workers: int,
         from projection_server.workers.local import WorkerPool
 
         return WorkerPool(bag_dir, workers=workers, **options)
+    if name == 'ray':
+        from projection_server.workers.ray import RayBackend
+
+        return RayBackend(bag_dir, workers=workers, **options)
     raise ProjectionError('invalid_settings',
                           f'unknown projection backend {name!r} (known: {", ".join(BACKENDS)})')

@@ -1,0 +1,458 @@
+"""The ``ray`` backend: one Ray actor per worker, each with a warm simulator.
+
+For when one machine is not enough: the actors (:mod:`.actor`) may run on any node of a Ray
+cluster. One dispatcher thread hands each idle actor one job at a time and takes results as
+they finish with ``ray.wait``; the job's time limit counts from when its actor takes it, as
+in the ``local`` backend. Finished bags come back as bytes and are published into this
+process's :class:`~projection_server.workers.bag_store.BagStore` under the same job key as
+the local backend uses, so either backend answers from the bags of the other.
+
+Failures, chosen so that every projection is run at most once:
+
+* actors are created with ``max_restarts=-1``: a dead actor process (a crash, a kill, a
+  timeout or a cancel, which stop a running projection by killing its actor) is restarted
+  by Ray, warm again, for the next job;
+* projections are sent with ``max_task_retries=0``: the one that was running fails with kind
+  ``worker_crashed`` (or ``timeout``, ``cancelled``), never silently re-run; the readiness
+  call after a restart is the one call that waits through the restart.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+import os
+from pathlib import Path
+import shutil
+import threading
+import time
+from typing import Any, TYPE_CHECKING
+
+import ray
+from ray.exceptions import GetTimeoutError, RayActorError, RayError
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.job import code_version
+from projection_server.simulation.settings import load_settings, Settings
+from projection_server.workers.backend import ProjectionResult
+from projection_server.workers.bag_store import BagStore, Retention, touch
+from projection_server.workers.ray.actor import ProjectionActor
+
+if TYPE_CHECKING:
+    from collections.abc import Callable, Mapping
+
+    from projection_server.simulation.job import Job
+
+__all__ = ['RayBackend', 'connect']
+
+_POLL = 0.02         # s: ray.wait's slice while an idle actor could take a new job
+_POLL_BUSY = 0.5     # s: the same while every actor is busy (nothing new can start)
+KEEP_FINISHED = 256  # finished results kept for identical submissions
+LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB each
+
+
+@dataclass
+class _Request:
+    job: Job
+    key: str
+    timeout: float
+    future: Future[ProjectionResult]
+    owners: set[str | None] = field(default_factory=set)
+    cancelled: bool = False
+
+
+@dataclass
+class _Actor:
+    """One actor and what it does now: starting (``ref`` is its readiness call), idle, or
+    running ``request`` (``ref`` is the projection) until ``deadline``."""
+
+    handle: Any
+    ref: Any = None
+    request: _Request | None = None
+    started: float = 0.0
+    deadline: float = 0.0
+    timed_out: bool = False
+    info: dict[str, Any] | None = None
+    error: ProjectionError | None = None
+
+    @property
+    def idle(self) -> bool:
+        return self.ref is None
+
+
+def connect(address: str, workers: int) -> Callable[[], None] | None:
+    """Join the Ray cluster at ``address`` (``auto``, ``ray://host:port`` or a head's
+    ``host:port``), or start a local instance for ``workers`` actors when it is empty.
+
+    Ray is started and stopped on a thread of its own that lives until then: Ray's local
+    processes die with the thread that started them (``PR_SET_PDEATHSIG``), and a node
+    starts its backend from whichever thread needs it first. Returns the function that
+    stops Ray again, or None when this process was connected to Ray already.
+
+    Raises:
+        ProjectionError: kind ``pool_closed`` with Ray's reason when it cannot start or join.
+    """
+    if ray.is_initialized():
+        return None
+    options: dict[str, Any] = {'log_to_driver': False, 'configure_logging': False,
+                               'namespace': 'projection_server'}
+    if address:
+        options['address'] = address
+    else:
+        options.update(num_cpus=workers, include_dashboard=False,
+                       object_store_memory=LOCAL_OBJECT_STORE)
+    started, stop = threading.Event(), threading.Event()
+    failure: list[Exception] = []
+
+    def own_ray() -> None:
+        try:
+            ray.init(**options)
+        except Exception as exc:
+            failure.append(exc)
+            return
+        finally:
+            started.set()
+        stop.wait()
+        ray.shutdown()
+
+    owner = threading.Thread(target=own_ray, name='ray-runtime', daemon=True)
+    owner.start()
+    started.wait()
+    if failure:
+        where = f'the Ray cluster at {address!r}' if address else 'a local Ray instance'
+        exc = failure[0]
+        raise ProjectionError('pool_closed',
+                              f'cannot start or join {where}: {type(exc).__name__}: {exc}'
+                              ) from exc
+
+    def shutdown() -> None:
+        stop.set()
+        owner.join(60.0)
+
+    return shutdown
+
+
+class RayBackend:
+    """``workers`` Ray actors writing bags into ``bag_dir`` (a directory of this machine).
+
+    ``address`` as for :func:`connect`. Implements
+    :class:`~projection_server.workers.backend.WorkerBackend`; close it (or use it as a
+    context manager) to kill its actors and, if it started Ray, to stop Ray.
+    """
+
+    def __init__(self, bag_dir: str | os.PathLike[str], workers: int = 1,
+                 settings: Settings | None = None,
+                 retention: Retention | Mapping[str, Any] | None = None,
+                 address: str = '', startup_timeout: float = 120.0):
+        if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+            raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
+        self.store = BagStore(bag_dir, retention)
+        self.bag_dir = self.store.bag_dir
+        self.settings = settings if settings is not None else load_settings()
+        self.address = address
+        self.startup_timeout = startup_timeout
+        self._code = code_version()
+        self._stop_ray = connect(address, workers)
+        # One CPU per actor: Ray places actors where cores are free, spread over the nodes.
+        self._remote = ray.remote(ProjectionActor).options(
+            num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD')
+        self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._queue: deque[_Request] = deque()
+        self._requests: dict[str, _Request] = {}
+        self._closed = False
+        self._actors = [self._new_actor() for _ in range(workers)]
+        self._thread = threading.Thread(target=self._dispatch, name='ray-projection-dispatch',
+                                        daemon=True)
+        self._thread.start()
+
+    def __enter__(self) -> RayBackend:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def workers(self) -> int:
+        return len(self._actors)
+
+    @property
+    def retention(self) -> Retention:
+        return self.store.retention
+
+    def placement(self, timeout: float = 120.0) -> list[dict[str, Any]]:
+        """Each actor's ``pid``, Ray ``node`` id and ``code_version``, once they are ready.
+
+        Raises:
+            ProjectionError: kind ``timeout`` if an actor is not ready within ``timeout`` s.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            with self._lock:
+                infos = [actor.info for actor in self._actors]
+            if all(info is not None for info in infos):
+                return [dict(info) for info in infos]
+            if time.monotonic() > deadline:
+                raise ProjectionError('timeout', f'Ray actors not ready within {timeout:g} s')
+            time.sleep(0.05)
+
+    def submit(self, job: Job, timeout: float,
+               owner: str | None = None) -> Future[ProjectionResult]:
+        """Queue ``job``; its simulation may take ``timeout`` seconds of wall-clock time,
+        counted from when an actor takes it."""
+        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or timeout <= 0:
+            raise ProjectionError('invalid_parameters', f'timeout must be > 0 s: {timeout!r}')
+        key = job.key(self.settings)
+        with self._lock:
+            if self._closed:
+                raise ProjectionError('pool_closed', 'the projection backend is closed')
+            request = self._requests.get(key)
+            if request is not None and (not request.future.done()
+                                        or _usable(request.future)):
+                if request.future.done():
+                    touch(Path(request.future.result().bag))
+                else:
+                    request.owners.add(owner)
+                return request.future
+            future: Future[ProjectionResult] = Future()
+            request = _Request(job, key, float(timeout), future, {owner})
+            self._requests.pop(key, None)
+            self._requests[key] = request
+            self._forget_finished()
+            final = self.store.existing(job, key)
+            if final is not None:
+                future.set_result(ProjectionResult(str(final)))
+                return future
+            self._queue.append(request)
+            self._wake.notify()
+        return future
+
+    def run(self, job: Job, timeout: float) -> str:
+        """Run ``job`` (or find its bag) and return the bag's path."""
+        return self.submit(job, timeout).result().bag
+
+    def cancel(self, owner: str) -> int:
+        """Cancel the unfinished projections that only ``owner`` asked for.
+
+        A queued one is dropped; a running one kills its actor, which Ray restarts.
+        """
+        cancelled = 0
+        with self._lock:
+            for request in list(self._requests.values()):
+                if request.future.done() or request.cancelled or request.owners != {owner}:
+                    continue
+                request.cancelled = True
+                cancelled += 1
+                running = [a for a in self._actors if a.request is request]
+                for actor in running:
+                    _kill(actor.handle, restart=True)
+                if not running:
+                    self._queue.remove(request)
+                    self._fail(request, ProjectionError(
+                        'cancelled', f'projection {request.key[:12]} was cancelled'))
+        return cancelled
+
+    def close(self) -> None:
+        """Kill the actors; unfinished projections fail with kind ``pool_closed``."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._wake.notify()
+            while self._queue:
+                self._fail(self._queue.popleft(), ProjectionError(
+                    'pool_closed', 'the projection backend was closed'))
+            for actor in self._actors:
+                _kill(actor.handle, restart=False)
+        self._thread.join(30.0)
+        if self._stop_ray is not None:
+            self._stop_ray()
+
+    # -- the dispatcher thread ------------------------------------------------------------
+    def _dispatch(self) -> None:
+        try:
+            while True:
+                with self._lock:
+                    if self._closed:
+                        break
+                    self._start_jobs()
+                    waiting = {a.ref: a for a in self._actors if a.ref is not None}
+                    if not waiting:
+                        self._wake.wait()
+                        continue
+                    can_start = any(a.idle for a in self._actors)
+                    limit = _POLL if can_start else _POLL_BUSY
+                now = time.monotonic()
+                ends = [a.deadline for a in waiting.values() if a.request is not None]
+                limit = max(0.0, min([limit, *(end - now for end in ends)]))
+                done, _ = ray.wait(list(waiting), num_returns=1, timeout=limit,
+                                   fetch_local=False)
+                for ref in done:
+                    self._finish(waiting[ref], ref)
+                self._check_deadlines()
+        finally:
+            with self._lock:
+                for actor in self._actors:
+                    if actor.request is not None:
+                        self._fail(actor.request, ProjectionError(
+                            'pool_closed', 'the projection backend was closed'))
+
+    def _start_jobs(self) -> None:
+        """Give queued requests to idle actors (called with the lock)."""
+        for actor in self._actors:
+            if not self._queue:
+                return
+            if not actor.idle:
+                continue
+            request = self._queue.popleft()
+            if request.future.done() or not request.future.set_running_or_notify_cancel():
+                continue
+            if actor.error is not None:   # its start-up failed: this job says why, then retry
+                self._fail(request, actor.error)
+                self._replace(actor)
+                continue
+            actor.request = request
+            actor.ref = actor.handle.project.remote(
+                request.job, self.store.name(request.job, request.key))
+            actor.started = time.monotonic()
+            actor.deadline = actor.started + request.timeout
+            actor.timed_out = False
+
+    def _finish(self, actor: _Actor, ref: Any) -> None:
+        request = actor.request
+        try:
+            value, ok = ray.get(ref, timeout=self.startup_timeout)
+        except RayActorError as exc:
+            self._lost(actor, exc)
+            return
+        except (GetTimeoutError, RayError) as exc:
+            value, ok = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}'), False
+        if request is None:   # the actor's readiness call
+            with self._lock:
+                actor.ref = None
+                if ok and value['code_version'] != self._code:
+                    value, ok = ProjectionError(
+                        'invalid_settings',
+                        f'a Ray worker on node {value["node"]} runs projection_server code '
+                        f'{value["code_version"]}, this node {self._code}: install the '
+                        'same version on every machine of the cluster'), False
+                actor.info, actor.error = (value, None) if ok else (None, value)
+            return
+        try:
+            result = self._publish(request, value) if ok else value
+        except Exception as exc:   # writing into the bag directory failed
+            result = ProjectionError('bag_error', f'{type(exc).__name__}: {exc}')
+        with self._lock:
+            actor.ref = actor.request = None
+            if isinstance(result, ProjectionResult):
+                if not request.future.done():
+                    request.future.set_result(result)
+            else:
+                self._fail(request, result)
+            self._wake.notify()
+
+    def _lost(self, actor: _Actor, exc: RayActorError) -> None:
+        """The actor died: fail its projection, wait for Ray to restart it."""
+        with self._lock:
+            request = actor.request
+            actor.request = None
+            if request is not None:
+                what = f'projection {request.key[:12]}'
+                if self._closed:
+                    error = ProjectionError('pool_closed', f'the backend was closed during {what}')
+                elif request.cancelled:
+                    error = ProjectionError('cancelled', f'{what} was cancelled')
+                elif actor.timed_out:
+                    error = ProjectionError(
+                        'timeout', f'{what} took longer than {request.timeout:g} s')
+                else:
+                    error = ProjectionError(
+                        'worker_crashed', f'Ray worker died during {what}: {_first_line(exc)}')
+                self._fail(request, error)
+            if self._closed:
+                actor.ref = None
+                return
+            if request is None:   # died for good while starting: a new actor
+                self._replace(actor, kill=False)
+                return
+            actor.info = None
+            actor.ref = actor.handle.ready.options(max_task_retries=-1).remote()
+            actor.started = time.monotonic()
+
+    def _check_deadlines(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            for actor in self._actors:
+                if actor.ref is None:
+                    continue
+                if actor.request is not None:
+                    if now >= actor.deadline and not actor.timed_out:
+                        actor.timed_out = True
+                        _kill(actor.handle, restart=True)
+                elif now - actor.started > self.startup_timeout and self._queue:
+                    # No actor could be placed or started (e.g. no free CPU in the cluster).
+                    self._fail(self._queue.popleft(), ProjectionError(
+                        'timeout', f'no Ray worker started within {self.startup_timeout:g} s'
+                        ' (are there free CPUs in the cluster?)'))
+                    actor.started = now
+
+    def _publish(self, request: _Request, value: tuple[dict[str, bytes], dict[str, Any]]
+                 ) -> ProjectionResult:
+        """Write the bag's files into the bag directory and publish it."""
+        files, timeline = value
+        tmp = self.store.tmp_dir()
+        try:
+            bag = tmp / self.store.name(request.job, request.key)
+            bag.mkdir()
+            for name, data in files.items():
+                (bag / Path(name).name).write_bytes(data)
+            final = self.store.publish(bag)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        timeline['meta']['bag'] = str(final)
+        return ProjectionResult(str(final), timeline)
+
+    def _new_actor(self) -> _Actor:
+        actor = _Actor(self._remote.remote(self.settings.to_dict()))
+        actor.ref = actor.handle.ready.options(max_task_retries=-1).remote()
+        actor.started = time.monotonic()
+        return actor
+
+    def _replace(self, actor: _Actor, kill: bool = True) -> None:
+        """A new actor in place of one that cannot serve (called with the lock)."""
+        if kill:
+            _kill(actor.handle, restart=False)
+        fresh = self._new_actor()
+        actor.handle, actor.ref, actor.started = fresh.handle, fresh.ref, fresh.started
+        actor.info = actor.error = actor.request = None
+
+    def _forget_finished(self) -> None:
+        finished = [key for key, r in self._requests.items() if r.future.done()]
+        for key in finished[:max(0, len(finished) - KEEP_FINISHED)]:
+            del self._requests[key]
+
+    def _fail(self, request: _Request, error: ProjectionError) -> None:
+        if self._requests.get(request.key) is request:
+            del self._requests[request.key]
+        if not request.future.done():
+            if not request.future.running():
+                request.future.set_running_or_notify_cancel()
+            request.future.set_exception(error)
+
+
+def _kill(handle: Any, restart: bool) -> None:
+    try:
+        ray.kill(handle, no_restart=not restart)
+    except (RayError, ValueError):   # already dead
+        pass
+
+
+def _first_line(exc: BaseException) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
+def _usable(future: Future[ProjectionResult]) -> bool:
+    """A finished future whose bag still exists (retention may have deleted it)."""
+    return (not future.cancelled() and future.exception() is None
+            and Path(future.result().bag).is_dir())
