@@ -1,0 +1,131 @@
+"""The ray worker backend on a real local Ray instance: the bags and timelines of the local
+backend, crashes, time limits, cancellation; and that the local backend needs no Ray.
+
+One Ray instance (started by the backend, as the node does with an empty ``ray_address``)
+and one actor serve the whole module. If Ray cannot start, the fixture fails with Ray's
+reason.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from projection_server.simulation import Job, ProjectionError
+from projection_server.workers import create_backend, WorkerBackend
+
+
+def job(make_scenario, force, position=0.0):
+    return Job.checked(make_scenario(), 'grasp_object', {'force': force, 'position': position})
+
+
+@pytest.fixture(scope='module')
+def ray_backend(tmp_path_factory):
+    from projection_server.workers.ray import RayBackend
+    with RayBackend(tmp_path_factory.mktemp('ray_bags'), workers=1) as backend:
+        backend.placement()   # its actor is up: start-up is not what the tests time
+        yield backend
+
+
+def actor_pid(backend):
+    (info,) = backend.placement()
+    return info['pid']
+
+
+def wait_until_projecting(pid, future, timeout=30.0):
+    """Until the actor process ``pid`` runs a projection (Ray titles it by its task)."""
+    deadline = time.monotonic() + timeout
+    while b'ProjectionActor.project' not in Path(f'/proc/{pid}/cmdline').read_bytes():
+        assert time.monotonic() < deadline and not future.done()
+        time.sleep(0.005)
+
+
+def test_the_ray_backend_is_a_worker_backend(ray_backend):
+    assert isinstance(ray_backend, WorkerBackend)
+    assert ray_backend.workers == 1
+
+
+def test_a_ray_projection_gives_the_local_backends_bag_and_timeline(
+        ray_backend, pool, make_scenario):
+    made = ray_backend.submit(job(make_scenario, 9.0, 0.02), timeout=60.0).result(60.0)
+    local = pool.submit(job(make_scenario, 9.0, 0.02), timeout=60.0).result(60.0)
+    assert Path(made.bag).parent == ray_backend.bag_dir
+    assert Path(made.bag).name == Path(local.bag).name   # one job key, one bag name
+    files = sorted(p.name for p in Path(local.bag).iterdir())
+    assert sorted(p.name for p in Path(made.bag).iterdir()) == files
+    for name in files:
+        assert (Path(made.bag) / name).read_bytes() == (Path(local.bag) / name).read_bytes()
+    assert made.timeline['meta']['bag'] == made.bag
+    assert {**made.timeline, 'meta': None} == {**local.timeline, 'meta': None}
+    assert {**made.timeline['meta'], 'bag': ''} == {**local.timeline['meta'], 'bag': ''}
+    assert ['break', ['egg1']] in [e[:2] for e in made.timeline['events']]
+
+
+def test_an_identical_projection_comes_from_the_bag_directory(ray_backend, make_scenario):
+    first = ray_backend.submit(job(make_scenario, 5.0), timeout=60.0).result(60.0)
+    again = ray_backend.submit(job(make_scenario, 5.0), timeout=60.0)
+    assert again.done() and again.result().bag == first.bag
+
+
+def test_an_actor_killed_mid_projection_fails_it_and_serves_the_next(
+        ray_backend, make_scenario):
+    pid = actor_pid(ray_backend)
+    future = ray_backend.submit(job(make_scenario, 4.0), timeout=60.0)
+    wait_until_projecting(pid, future)
+    os.kill(pid, signal.SIGKILL)
+    with pytest.raises(ProjectionError) as info:
+        future.result(timeout=60.0)
+    assert info.value.kind == 'worker_crashed'
+    result = ray_backend.submit(job(make_scenario, 4.0), timeout=60.0).result(60.0)
+    assert os.path.isdir(result.bag)
+    assert actor_pid(ray_backend) != pid   # restarted by Ray
+    assert not [p for p in ray_backend.bag_dir.iterdir() if p.name.startswith('.tmp-')]
+
+
+def test_a_projection_over_its_time_limit_is_stopped(ray_backend, make_scenario):
+    with pytest.raises(ProjectionError) as info:
+        ray_backend.submit(job(make_scenario, 6.0), timeout=0.05).result(60.0)
+    assert info.value.kind == 'timeout'
+    assert os.path.isdir(ray_backend.run(job(make_scenario, 6.0), timeout=60.0))
+
+
+def test_cancelling_an_owner_stops_its_running_and_queued_projections_only(
+        ray_backend, make_scenario):
+    pid = actor_pid(ray_backend)
+    running = ray_backend.submit(job(make_scenario, 2.0), timeout=60.0, owner='q/1')
+    queued = ray_backend.submit(job(make_scenario, 2.5), timeout=60.0, owner='q/1')
+    shared = ray_backend.submit(job(make_scenario, 2.6), timeout=60.0, owner='q/1')
+    ray_backend.submit(job(make_scenario, 2.6), timeout=60.0, owner='q/2')
+    wait_until_projecting(pid, running)
+    started = time.monotonic()
+    assert ray_backend.cancel('q/1') == 2
+    for future in (running, queued):
+        with pytest.raises(ProjectionError) as info:
+            future.result(timeout=60.0)
+        assert info.value.kind == 'cancelled'
+    assert time.monotonic() - started < 10.0
+    assert os.path.isdir(shared.result(timeout=60.0).bag)   # q/2 still wants it
+    assert actor_pid(ray_backend) != pid
+
+
+def test_an_unknown_backend_is_an_invalid_setting(tmp_path):
+    with pytest.raises(ProjectionError) as info:
+        create_backend('spark', tmp_path, 1)
+    assert info.value.kind == 'invalid_settings' and 'ray' in info.value.message
+
+
+def test_the_local_backend_runs_without_importing_ray(tmp_path):
+    code = ('import sys\n'
+            'from projection_server import projection\n'
+            'from projection_server.workers import create_backend\n'
+            f'create_backend("local", {str(tmp_path)!r}, 1).close()\n'
+            'assert "ray" not in sys.modules, "ray was imported"\n')
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
