@@ -1,0 +1,140 @@
+"""The node with ``projection_backend:=ray`` on a real two-node Ray cluster of this machine.
+
+A head and a worker node (``ray start --head``, ``ray start --address``) are started for
+the module, the node joins them with ``ray_address`` and runs its two workers as Ray
+actors, one per node. Table I through this node gives the timelines of the local backend
+(the session's node); an actor killed mid-query fails that query with ``worker_crashed``
+and the node serves on. Everything is stopped at the end; if Ray cannot start, the
+fixture fails with Ray's output.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+import signal
+import time
+
+from projection_interfaces.srv import PrologQuery
+import pytest
+
+from projection_server.reproduce import paper
+
+Q = PrologQuery.Request
+SIM_TIMEOUT = 120.0
+NAME = 'projection_server_ray'
+
+TABLE_I = f'''
+    make_projection(grasping, grasp_object,
+                    [(F, force, {list(paper.GRASP_FORCES)}),
+                     (P, position, {list(paper.GRASP_POSITIONS)})], TL),
+    ( occurs(break, _, TL) -> O = break ; occurs(slip, _, TL) -> O = slip ; O = ok ),
+    findall(E-T, occurs(E, T, TL), Es), findall(Fl-T, holds(Fl, T, TL), Fs),
+    findall(Q-V, quantity(Q, V, TL), Qs)'''
+
+
+@pytest.fixture(scope='module')
+def cluster():
+    from projection_server.workers.ray.local_cluster import LocalCluster
+    with LocalCluster(nodes=2, cpus_per_node=1) as running:
+        yield running
+
+
+@pytest.fixture(scope='module')
+def ray_server(cluster, rclpy_context, tmp_path_factory):
+    from projection_server.launcher import node_command, NodeProcess
+    log = tmp_path_factory.mktemp('ray_node') / 'node.log'
+    params = {'default_timeout': 5.0, 'max_engines': 4,
+              'bag_dir': str(tmp_path_factory.mktemp('ray_bags')),
+              'projection_backend': 'ray', 'ray_address': cluster.address,
+              'projection_workers': 2}
+    with NodeProcess(node_command(NAME, params), log) as proc:
+        proc.wait_for_service(f'/{NAME}/query', timeout=180.0)
+        yield f'/{NAME}'
+    assert proc.returncode in (0, -signal.SIGINT), log.read_text()
+
+
+@pytest.fixture(scope='module')
+def ray_query(ray_server, node):
+    import rclpy
+    client = node.create_client(PrologQuery, f'{ray_server}/query')
+    assert client.wait_for_service(timeout_sec=20.0)
+
+    def send(text, mode=Q.ALL_SOLUTIONS):
+        return client.call_async(Q(mode=mode, query=text, timeout=SIM_TIMEOUT))
+
+    def wait(future, timeout=SIM_TIMEOUT * 3):
+        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+        assert future.done(), 'no answer from the ray node'
+        return future.result()
+
+    send.wait = wait
+    yield send
+    node.destroy_client(client)
+
+
+def solutions(response):
+    return [json.loads(s) for s in response.solutions]
+
+
+def actor_processes():
+    """Process ids of the machine's projection actors, with their parents (raylets)."""
+    found = {}
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / 'cmdline').read_bytes()
+            parent = int((entry / 'stat').read_text().rsplit(')', 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        if cmdline.startswith(b'ray::ProjectionActor'):
+            found[int(entry.name)] = (parent, cmdline)
+    return found
+
+
+def test_the_workers_are_actors_on_both_nodes_of_the_cluster(ray_query):
+    deadline = time.monotonic() + 120.0   # actors start beside the node, not before it
+    while len(actors := actor_processes()) < 2 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert len(actors) == 2
+    raylets = {parent for parent, _ in actors.values()}
+    assert len(raylets) == 2
+    for raylet in raylets:
+        assert b'raylet' in Path(f'/proc/{raylet}/cmdline').read_bytes()
+
+
+def test_table_i_through_the_ray_backend_gives_the_local_backends_timelines(ray_query, call):
+    r = ray_query.wait(ray_query(TABLE_I))
+    assert r.ok, r.message
+    made = solutions(r)
+    local = call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=TABLE_I,
+                                         timeout=SIM_TIMEOUT), timeout=SIM_TIMEOUT * 3)
+    assert local.ok, local.message
+    assert len(made) == 18
+    strip = ('TL',)   # the timeline handles are per node
+    assert [{k: v for k, v in s.items() if k not in strip} for s in made] == \
+        [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    outcomes = {(s['F'], s['P']): s['O'] for s in made}
+    assert outcomes[(1, 0.0)] == 'slip' and outcomes[(11, 0.0)] == 'break'
+    assert outcomes[(5, 0.0)] == 'ok'
+
+
+def test_an_actor_killed_mid_query_fails_it_as_worker_crashed_and_the_node_serves_on(
+        ray_query):
+    text = 'simulate(grasping, grasp_object, [(_, force, [4.2]), (_, position, [0.01])], 60, L)'
+    future = ray_query(text, Q.ONCE)
+    deadline = time.monotonic() + 60.0
+    while not (busy := [pid for pid, (_, cmd) in actor_processes().items()
+                        if b'ProjectionActor.project' in cmd]):
+        assert time.monotonic() < deadline and not future.done()
+        time.sleep(0.005)
+    os.kill(busy[0], signal.SIGKILL)
+    r = ray_query.wait(future)
+    assert not r.ok and r.error_kind == 'projection_error', r.message
+    assert 'worker_crashed' in r.message
+    r = ray_query.wait(ray_query(text, Q.ONCE))   # the restarted actor serves it
+    assert r.ok, r.message
+    assert Path(solutions(r)[0]['L']).is_dir()
+    assert busy[0] not in actor_processes()
