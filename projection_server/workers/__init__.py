@@ -5,6 +5,7 @@ Map of the package:
 * :mod:`.backend`: :class:`WorkerBackend`, the interface the projection layer talks to
   (submit a job -> future of a :class:`ProjectionResult`; cancel; close).
 * :mod:`.bag_store`: the bag directory shared by every backend (names, retention).
+* :mod:`.requests`: the projections asked for, by job key and owner (every backend's).
 * :mod:`.local`: the ``local`` backend, supervised worker processes on this machine.
 * :mod:`.ray`: the ``ray`` backend, Ray actors on this machine or a Ray cluster.
 """

@@ -19,11 +19,8 @@ to a :class:`~projection_server.workers.bag_store.BagStore`.
 
 from __future__ import annotations
 
-from concurrent.futures import Future
-from dataclasses import dataclass, field
 import multiprocessing
 from multiprocessing.connection import wait
-from pathlib import Path
 import queue
 import shutil
 import threading
@@ -32,11 +29,13 @@ from typing import Any, NoReturn, TYPE_CHECKING
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.settings import load_settings, Settings
 from projection_server.workers.backend import ProjectionResult
-from projection_server.workers.bag_store import BagStore, Retention, touch
+from projection_server.workers.bag_store import BagStore, Retention
 from projection_server.workers.local.process import worker_main
+from projection_server.workers.requests import Request, Requests
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
+    from concurrent.futures import Future
     import os
 
     from projection_server.simulation.job import Job
@@ -44,19 +43,6 @@ if TYPE_CHECKING:
 __all__ = ['WorkerPool']
 
 _POLL = 1.0   # s between liveness checks while waiting for a result
-# Finished results kept for identical submissions (prefetched ones wait here to be asked
-# for); beyond this the oldest go, and their bags answer from the bag directory.
-KEEP_FINISHED = 256
-
-
-@dataclass
-class _Request:
-    job: Job
-    key: str
-    timeout: float
-    future: Future[ProjectionResult]
-    owners: set[str | None] = field(default_factory=set)
-    cancelled: bool = False
 
 
 class WorkerPool:
@@ -81,8 +67,8 @@ class WorkerPool:
         self.startup_timeout = startup_timeout
         self.max_projections = max_projections
         self._context = multiprocessing.get_context(start_method)
-        self._queue: queue.Queue[_Request | None] = queue.Queue()
-        self._requests: dict[str, _Request] = {}
+        self._queue: queue.Queue[Request | None] = queue.Queue()
+        self._requests = Requests(self.store)
         self._lock = threading.Lock()
         self._closed = False
         self._slots = [_Slot(self, i) for i in range(workers)]
@@ -118,25 +104,10 @@ class WorkerPool:
         with self._lock:
             if self._closed:
                 raise ProjectionError('pool_closed', 'the projection pool is closed')
-            request = self._requests.get(key)
-            if request is not None and (not request.future.done()
-                                        or _usable(request.future)):
-                if request.future.done():
-                    touch(Path(request.future.result().bag))
-                else:
-                    request.owners.add(owner)
-                return request.future
-            future: Future[ProjectionResult] = Future()
-            request = _Request(job, key, float(timeout), future, {owner})
-            self._requests.pop(key, None)
-            self._requests[key] = request
-            self._forget_finished()
-            final = self.store.existing(job, key)
-            if final is not None:
-                future.set_result(ProjectionResult(str(final)))
-                return future
-            self._queue.put(request)
-        return future
+            request, new = self._requests.add(job, key, timeout, owner)
+            if new:
+                self._queue.put(request)
+        return request.future
 
     def run(self, job: Job, timeout: float) -> str:
         """Run ``job`` (or find its bag) and return the bag's path.
@@ -160,9 +131,7 @@ class WorkerPool:
         """
         cancelled = 0
         with self._lock:
-            for request in list(self._requests.values()):
-                if request.future.done() or request.owners != {owner}:
-                    continue
+            for request in self._requests.only_for(owner):
                 request.cancelled = True
                 cancelled += 1
                 if request.future.running():   # stop the worker that runs it
@@ -170,8 +139,7 @@ class WorkerPool:
                         if slot.request is request:
                             slot.terminate_worker()
                 else:   # queued: its slot skips it
-                    request.future.set_running_or_notify_cancel()
-                    self._fail(request, ProjectionError(
+                    self._requests.fail(request, ProjectionError(
                         'cancelled', f'projection {request.key[:12]} was cancelled'))
         return cancelled
 
@@ -197,18 +165,6 @@ class WorkerPool:
         for slot in self._slots:
             slot.join(10.0)
 
-    def _forget_finished(self) -> None:
-        finished = [key for key, r in self._requests.items() if r.future.done()]
-        for key in finished[:max(0, len(finished) - KEEP_FINISHED)]:
-            del self._requests[key]
-
-    def _fail(self, request: _Request, error: ProjectionError) -> None:
-        """Fail a running (or just claimed) request; called with or without the lock."""
-        if self._requests.get(request.key) is request:
-            del self._requests[request.key]
-        if not request.future.done():
-            request.future.set_exception(error)
-
 
 class _Slot:
     """One worker process and the thread that feeds and supervises it."""
@@ -218,7 +174,7 @@ class _Slot:
         self._process: Any = None
         self._conn: Any = None
         self._projections = 0   # made by the running worker process
-        self.request: _Request | None = None
+        self.request: Request | None = None
         self._thread = threading.Thread(target=self._loop, name=f'projection-worker-{index}',
                                         daemon=True)
         self._thread.start()
@@ -260,10 +216,10 @@ class _Slot:
                         exc = ProjectionError(
                             'cancelled', f'projection {request.key[:12]} was cancelled')
                     with pool._lock:
-                        pool._fail(request, exc)
+                        pool._requests.fail(request, exc)
                 except Exception as exc:  # a bug here must fail the projection, not hang it
                     with pool._lock:
-                        pool._fail(request, ProjectionError(
+                        pool._requests.fail(request, ProjectionError(
                             'simulation_failed', f'{type(exc).__name__}: {exc}'))
                 else:
                     request.future.set_result(result)
@@ -279,7 +235,7 @@ class _Slot:
         finally:
             self._stop()
 
-    def _execute(self, request: _Request) -> ProjectionResult:
+    def _execute(self, request: Request) -> ProjectionResult:
         self._ensure_worker()
         store = self._pool.store
         tmp = store.tmp_dir()
@@ -365,8 +321,3 @@ class _Slot:
                 pass
         self._kill()
 
-
-def _usable(future: Future[ProjectionResult]) -> bool:
-    """A finished future whose bag still exists (retention may have deleted it)."""
-    return (not future.cancelled() and future.exception() is None
-            and Path(future.result().bag).is_dir())

@@ -20,8 +20,7 @@ Failures, chosen so that every projection is run at most once:
 from __future__ import annotations
 
 from collections import deque
-from concurrent.futures import Future
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import os
 from pathlib import Path
 import shutil
@@ -36,11 +35,13 @@ from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.job import code_version
 from projection_server.simulation.settings import load_settings, Settings
 from projection_server.workers.backend import ProjectionResult
-from projection_server.workers.bag_store import BagStore, Retention, touch
+from projection_server.workers.bag_store import BagStore, Retention
 from projection_server.workers.ray.actor import ProjectionActor
+from projection_server.workers.requests import Request, Requests
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
+    from concurrent.futures import Future
 
     from projection_server.simulation.job import Job
 
@@ -48,18 +49,7 @@ __all__ = ['RayBackend', 'connect']
 
 _POLL = 0.02         # s: ray.wait's slice while an idle actor could take a new job
 _POLL_BUSY = 0.5     # s: the same while every actor is busy (nothing new can start)
-KEEP_FINISHED = 256  # finished results kept for identical submissions
 LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB each
-
-
-@dataclass
-class _Request:
-    job: Job
-    key: str
-    timeout: float
-    future: Future[ProjectionResult]
-    owners: set[str | None] = field(default_factory=set)
-    cancelled: bool = False
 
 
 @dataclass
@@ -69,7 +59,7 @@ class _Actor:
 
     handle: Any
     ref: Any = None
-    request: _Request | None = None
+    request: Request | None = None
     started: float = 0.0
     deadline: float = 0.0
     timed_out: bool = False
@@ -159,8 +149,8 @@ class RayBackend:
             num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD')
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
-        self._queue: deque[_Request] = deque()
-        self._requests: dict[str, _Request] = {}
+        self._queue: deque[Request] = deque()
+        self._requests = Requests(self.store)
         self._closed = False
         self._actors = [self._new_actor() for _ in range(workers)]
         self._thread = threading.Thread(target=self._dispatch, name='ray-projection-dispatch',
@@ -207,26 +197,11 @@ class RayBackend:
         with self._lock:
             if self._closed:
                 raise ProjectionError('pool_closed', 'the projection backend is closed')
-            request = self._requests.get(key)
-            if request is not None and (not request.future.done()
-                                        or _usable(request.future)):
-                if request.future.done():
-                    touch(Path(request.future.result().bag))
-                else:
-                    request.owners.add(owner)
-                return request.future
-            future: Future[ProjectionResult] = Future()
-            request = _Request(job, key, float(timeout), future, {owner})
-            self._requests.pop(key, None)
-            self._requests[key] = request
-            self._forget_finished()
-            final = self.store.existing(job, key)
-            if final is not None:
-                future.set_result(ProjectionResult(str(final)))
-                return future
-            self._queue.append(request)
-            self._wake.notify()
-        return future
+            request, new = self._requests.add(job, key, timeout, owner)
+            if new:
+                self._queue.append(request)
+                self._wake.notify()
+        return request.future
 
     def run(self, job: Job, timeout: float) -> str:
         """Run ``job`` (or find its bag) and return the bag's path."""
@@ -239,9 +214,7 @@ class RayBackend:
         """
         cancelled = 0
         with self._lock:
-            for request in list(self._requests.values()):
-                if request.future.done() or request.cancelled or request.owners != {owner}:
-                    continue
+            for request in self._requests.only_for(owner):
                 request.cancelled = True
                 cancelled += 1
                 running = [a for a in self._actors if a.request is request]
@@ -249,7 +222,7 @@ class RayBackend:
                     _kill(actor.handle, restart=True)
                 if not running:
                     self._queue.remove(request)
-                    self._fail(request, ProjectionError(
+                    self._requests.fail(request, ProjectionError(
                         'cancelled', f'projection {request.key[:12]} was cancelled'))
         return cancelled
 
@@ -261,7 +234,7 @@ class RayBackend:
             self._closed = True
             self._wake.notify()
             while self._queue:
-                self._fail(self._queue.popleft(), ProjectionError(
+                self._requests.fail(self._queue.popleft(), ProjectionError(
                     'pool_closed', 'the projection backend was closed'))
             for actor in self._actors:
                 _kill(actor.handle, restart=False)
@@ -295,7 +268,7 @@ class RayBackend:
             with self._lock:
                 for actor in self._actors:
                     if actor.request is not None:
-                        self._fail(actor.request, ProjectionError(
+                        self._requests.fail(actor.request, ProjectionError(
                             'pool_closed', 'the projection backend was closed'))
 
     def _start_jobs(self) -> None:
@@ -309,7 +282,7 @@ class RayBackend:
             if request.future.done() or not request.future.set_running_or_notify_cancel():
                 continue
             if actor.error is not None:   # its start-up failed: this job says why, then retry
-                self._fail(request, actor.error)
+                self._requests.fail(request, actor.error)
                 self._replace(actor)
                 continue
             actor.request = request
@@ -349,7 +322,7 @@ class RayBackend:
                 if not request.future.done():
                     request.future.set_result(result)
             else:
-                self._fail(request, result)
+                self._requests.fail(request, result)
             self._wake.notify()
 
     def _lost(self, actor: _Actor, exc: RayActorError) -> None:
@@ -369,7 +342,7 @@ class RayBackend:
                 else:
                     error = ProjectionError(
                         'worker_crashed', f'Ray worker died during {what}: {_first_line(exc)}')
-                self._fail(request, error)
+                self._requests.fail(request, error)
             if self._closed:
                 actor.ref = None
                 return
@@ -392,12 +365,12 @@ class RayBackend:
                         _kill(actor.handle, restart=True)
                 elif now - actor.started > self.startup_timeout and self._queue:
                     # No actor could be placed or started (e.g. no free CPU in the cluster).
-                    self._fail(self._queue.popleft(), ProjectionError(
+                    self._requests.fail(self._queue.popleft(), ProjectionError(
                         'timeout', f'no Ray worker started within {self.startup_timeout:g} s'
                         ' (are there free CPUs in the cluster?)'))
                     actor.started = now
 
-    def _publish(self, request: _Request, value: tuple[dict[str, bytes], dict[str, Any]]
+    def _publish(self, request: Request, value: tuple[dict[str, bytes], dict[str, Any]]
                  ) -> ProjectionResult:
         """Write the bag's files into the bag directory and publish it."""
         files, timeline = value
@@ -427,19 +400,6 @@ class RayBackend:
         actor.handle, actor.ref, actor.started = fresh.handle, fresh.ref, fresh.started
         actor.info = actor.error = actor.request = None
 
-    def _forget_finished(self) -> None:
-        finished = [key for key, r in self._requests.items() if r.future.done()]
-        for key in finished[:max(0, len(finished) - KEEP_FINISHED)]:
-            del self._requests[key]
-
-    def _fail(self, request: _Request, error: ProjectionError) -> None:
-        if self._requests.get(request.key) is request:
-            del self._requests[request.key]
-        if not request.future.done():
-            if not request.future.running():
-                request.future.set_running_or_notify_cancel()
-            request.future.set_exception(error)
-
 
 def _kill(handle: Any, restart: bool) -> None:
     try:
@@ -451,8 +411,3 @@ def _kill(handle: Any, restart: bool) -> None:
 def _first_line(exc: BaseException) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
-
-def _usable(future: Future[ProjectionResult]) -> bool:
-    """A finished future whose bag still exists (retention may have deleted it)."""
-    return (not future.cancelled() and future.exception() is None
-            and Path(future.result().bag).is_dir())

@@ -1,0 +1,170 @@
+"""Projections on the local and the ray backend, with 1 and 2 workers: the per-projection
+overhead of Ray against local worker processes, and the speed-up from a second worker.
+
+Two batches: the paper's Table I (18 egg grasps: 6 forces x 3 positions) and a batch of
+pours (Table II's angles at hold 0.5 s, centred). The scenarios are the knowledge base's,
+taken from bags a node made (``simulate/5`` of ``grasping`` and ``pouring``). Each backend
+gets a fresh bag directory (nothing cached) and warm workers (one warm-up projection per
+worker, not timed); a batch is submitted at once and timed until its last projection is
+published. Local and ray runs alternate, so a loaded machine slows both alike; the local
+backend is the floor Ray is measured against.
+
+    tools/with_env.sh python bench/scaling.py --repeat 3
+    tools/with_env.sh python bench/scaling.py --ray-address auto   # an existing cluster
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import time
+
+from projection_server.reproduce import paper
+
+POUR_ANGLES = paper.POUR_ANGLES
+BATCHES = ('table1', 'pours')
+
+
+def kb_scenarios(node_dir: str) -> dict[str, dict]:
+    """The grasping and pouring scenarios of the knowledge base, from bags a node made."""
+    import json
+
+    import rclpy
+
+    from projection_server.bags import read_bag
+    from projection_server.client import PrologClient
+    from projection_server.launcher import node_command, NodeProcess
+
+    rclpy.init()
+    log = os.path.join(node_dir, 'node.log')
+    params = {'bag_dir': os.path.join(node_dir, 'bags'), 'default_timeout': 600.0}
+    scenarios = {}
+    try:
+        with NodeProcess(node_command('/scaling_kb', params), _path(log)) as proc:
+            proc.wait_for_service('/scaling_kb/query')
+            with PrologClient('/scaling_kb', service_timeout=60.0) as client:
+                for name, goal in (('grasping', 'simulate(grasping, grasp_object, '
+                                                '[(_, force, [5])], 300, L)'),
+                                   ('pouring', 'simulate(pouring, pour, [(_, angle, '
+                                               f'[{POUR_ANGLES[0]}])], 300, L)')):
+                    bag = client.once(goal, timeout=600.0)['L']
+                    _, _, info = next(read_bag(bag, ['/projection/info']))
+                    scenarios[name] = json.loads(info.scenario_json)
+    finally:
+        rclpy.try_shutdown()
+    return scenarios
+
+
+def batches(scenarios: dict[str, dict]) -> dict[str, list]:
+    from projection_server.simulation import Job
+
+    grasp = [Job.checked(scenarios['grasping'], 'grasp_object',
+                         {'force': float(f), 'position': float(p)})
+             for p in paper.GRASP_POSITIONS for f in paper.GRASP_FORCES]
+    pours = [Job.checked(scenarios['pouring'], 'pour', {'angle': float(a), 'time': 0.5})
+             for a in POUR_ANGLES]
+    return {'table1': grasp, 'pours': pours}
+
+
+def warm_up(backend, scenarios: dict[str, dict]) -> None:
+    """One untimed projection per worker, at once: every worker started and warm."""
+    from projection_server.simulation import Job
+
+    jobs = [Job.checked(scenarios['grasping'], 'grasp_object',
+                        {'force': 2.0 + 0.25 * i, 'position': 0.01})
+            for i in range(backend.workers)]
+    for future in [backend.submit(job, 600.0) for job in jobs]:
+        future.result(600.0)
+
+
+def timed(backend, jobs: list) -> float:
+    start = time.perf_counter()
+    futures = [backend.submit(job, 600.0) for job in jobs]
+    for future in futures:
+        future.result(1200.0)
+    return time.perf_counter() - start
+
+
+def run_once(kind: str, workers: int, address: str, scenarios, jobs) -> dict[str, float]:
+    from projection_server.workers import create_backend
+
+    options = {'address': address} if kind == 'ray' else {}
+    with tempfile.TemporaryDirectory() as bag_dir:
+        backend = create_backend(kind, bag_dir, workers, **options)
+        try:
+            warm_up(backend, scenarios)
+            return {name: timed(backend, jobs[name]) for name in BATCHES}
+        finally:
+            backend.close()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--workers', type=int, nargs='+', default=[1, 2])
+    parser.add_argument('--repeat', type=int, default=3)
+    parser.add_argument('--ray-address', default='',
+                        help='join this Ray cluster (auto, host:port); default: start a '
+                             'one-node cluster on this machine for the run')
+    args = parser.parse_args()
+    os.environ.setdefault('ROS_DOMAIN_ID', str(160 + os.getpid() % 30))
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+    from projection_server.workers.ray.local_cluster import LocalCluster
+
+    with tempfile.TemporaryDirectory() as node_dir:
+        scenarios = kb_scenarios(node_dir)
+    jobs = batches(scenarios)
+    cluster = None
+    address = args.ray_address
+    if not address:
+        cluster = LocalCluster(nodes=1, cpus_per_node=max(args.workers)).__enter__()
+        address = cluster.address
+    times: dict[tuple[str, int, str], list[float]] = {}
+    try:
+        for r in range(args.repeat):
+            for workers in args.workers:
+                for kind in ('local', 'ray'):
+                    result = run_once(kind, workers, address, scenarios, jobs)
+                    for name, seconds in result.items():
+                        times.setdefault((kind, workers, name), []).append(seconds)
+                    print(f'run {r + 1}/{args.repeat} {kind:5} workers={workers}: '
+                          + ', '.join(f'{n} {s:.2f} s' for n, s in result.items()),
+                          flush=True)
+    finally:
+        if cluster is not None:
+            cluster.stop()
+
+    print(f'\nmachine: {os.cpu_count()} cores, {platform.python_implementation()} '
+          f'{platform.python_version()}, load average {os.getloadavg()[0]:.1f}; '
+          f'ray at {args.ray_address or "a one-node cluster started for the run"}')
+    print(f'settings: {args.repeat} runs, fresh bag directory and warm workers per run; '
+          f'Table I = {len(jobs["table1"])} grasps, pours = {len(jobs["pours"])} pours '
+          f'(angles {", ".join(str(a) for a in POUR_ANGLES)}, hold 0.5 s, centred)\n')
+    print('| batch | workers | local median | ray median | ray overhead per projection '
+          '| ray / local | speed-up local | speed-up ray |')
+    print('|---|---|---|---|---|---|---|---|')
+    for name in BATCHES:
+        n = len(jobs[name])
+        for workers in args.workers:
+            local = statistics.median(times[('local', workers, name)])
+            ray = statistics.median(times[('ray', workers, name)])
+            base = args.workers[0]
+            up_local = statistics.median(times[('local', base, name)]) / local
+            up_ray = statistics.median(times[('ray', base, name)]) / ray
+            print(f'| {name} | {workers} | {local:.2f} s | {ray:.2f} s '
+                  f'| {1000 * (ray - local) * workers / n:+.0f} ms | {ray / local:.2f} '
+                  f'| {up_local:.2f}x | {up_ray:.2f}x |')
+    return 0
+
+
+def _path(text: str):
+    from pathlib import Path
+    return Path(text)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
