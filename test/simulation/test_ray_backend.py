@@ -114,6 +114,18 @@ def test_cancelling_an_owner_stops_its_running_and_queued_projections_only(
     assert actor_pid(ray_backend) != pid
 
 
+def test_an_actor_is_replaced_by_a_fresh_one_after_max_projections(
+        ray_backend, make_scenario):
+    pid = actor_pid(ray_backend)
+    ray_backend.max_projections = 1
+    try:
+        assert os.path.isdir(ray_backend.run(job(make_scenario, 3.5), timeout=60.0))
+        assert actor_pid(ray_backend) != pid
+    finally:
+        ray_backend.max_projections = 200
+    assert os.path.isdir(ray_backend.run(job(make_scenario, 3.75), timeout=60.0))
+
+
 def test_an_unknown_backend_is_an_invalid_setting(tmp_path):
     with pytest.raises(ProjectionError) as info:
         create_backend('spark', tmp_path, 1)

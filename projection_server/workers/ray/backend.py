@@ -15,6 +15,10 @@ Failures, chosen so that every projection is run at most once:
 * projections are sent with ``max_task_retries=0``: the one that was running fails with kind
   ``worker_crashed`` (or ``timeout``, ``cancelled``), never silently re-run; the readiness
   call after a restart is the one call that waits through the restart.
+
+PyBullet keeps a little memory per world it has built, so, as in the local backend, an
+actor is replaced by a fresh one after ``max_projections`` projections, while no job waits
+for it.
 """
 
 from __future__ import annotations
@@ -63,6 +67,7 @@ class _Actor:
     started: float = 0.0
     deadline: float = 0.0
     timed_out: bool = False
+    projections: int = 0
     info: dict[str, Any] | None = None
     error: ProjectionError | None = None
 
@@ -134,7 +139,8 @@ class RayBackend:
     def __init__(self, bag_dir: str | os.PathLike[str], workers: int = 1,
                  settings: Settings | None = None,
                  retention: Retention | Mapping[str, Any] | None = None,
-                 address: str = '', startup_timeout: float = 120.0):
+                 address: str = '', startup_timeout: float = 120.0,
+                 max_projections: int = 200):
         if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
             raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
         self.store = BagStore(bag_dir, retention)
@@ -142,6 +148,7 @@ class RayBackend:
         self.settings = settings if settings is not None else load_settings()
         self.address = address
         self.startup_timeout = startup_timeout
+        self.max_projections = max_projections
         self._code = code_version()
         self._stop_ray = connect(address, workers)
         # One CPU per actor: Ray places actors where cores are free, spread over the nodes.
@@ -323,6 +330,9 @@ class RayBackend:
                     request.future.set_result(result)
             else:
                 self._requests.fail(request, result)
+            actor.projections += 1
+            if actor.projections >= self.max_projections and not self._closed:
+                self._replace(actor)
             self._wake.notify()
 
     def _lost(self, actor: _Actor, exc: RayActorError) -> None:
@@ -349,9 +359,7 @@ class RayBackend:
             if request is None:   # died for good while starting: a new actor
                 self._replace(actor, kill=False)
                 return
-            actor.info = None
-            actor.ref = actor.handle.ready.options(max_task_retries=-1).remote()
-            actor.started = time.monotonic()
+            self._restarting(actor)
 
     def _check_deadlines(self) -> None:
         now = time.monotonic()
@@ -386,6 +394,12 @@ class RayBackend:
         timeline['meta']['bag'] = str(final)
         return ProjectionResult(str(final), timeline)
 
+    def _restarting(self, actor: _Actor) -> None:
+        """Wait for Ray to restart the actor (called with the lock)."""
+        actor.info, actor.projections = None, 0
+        actor.ref = actor.handle.ready.options(max_task_retries=-1).remote()
+        actor.started = time.monotonic()
+
     def _new_actor(self) -> _Actor:
         actor = _Actor(self._remote.remote(self.settings.to_dict()))
         actor.ref = actor.handle.ready.options(max_task_retries=-1).remote()
@@ -399,6 +413,7 @@ class RayBackend:
         fresh = self._new_actor()
         actor.handle, actor.ref, actor.started = fresh.handle, fresh.ref, fresh.started
         actor.info = actor.error = actor.request = None
+        actor.projections = 0
 
 
 def _kill(handle: Any, restart: bool) -> None:
