@@ -123,6 +123,7 @@ def main() -> int:
     if not address:
         cluster = LocalCluster(nodes=1, cpus_per_node=max(args.workers)).__enter__()
         address = cluster.address
+        os.environ.update(cluster.env)
     times: dict[tuple[str, int, str], list[float]] = {}
     try:
         for r in range(args.repeat):

@@ -37,9 +37,20 @@ TABLE_I = f'''
 
 @pytest.fixture(scope='module')
 def cluster():
+    """The cluster, and its settings in the environment of the processes that join it (a
+    Ray instance started earlier in this process may have left others there)."""
     from projection_server.workers.ray.local_cluster import LocalCluster
     with LocalCluster(nodes=2, cpus_per_node=1) as running:
-        yield running
+        saved = {key: os.environ.get(key) for key in running.env}
+        os.environ.update(running.env)
+        try:
+            yield running
+        finally:
+            for key, value in saved.items():
+                if value is None:
+                    os.environ.pop(key, None)
+                else:
+                    os.environ[key] = value
 
 
 @pytest.fixture(scope='module')

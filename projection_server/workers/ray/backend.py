@@ -356,8 +356,9 @@ class RayBackend:
             if self._closed:
                 actor.ref = None
                 return
-            if request is None:   # died for good while starting: a new actor
-                self._replace(actor, kill=False)
+            if request is None:   # died for good while starting: the next job says so
+                actor.ref, actor.error = None, ProjectionError(
+                    'worker_crashed', f'a Ray worker could not start: {_first_line(exc)}')
                 return
             self._restarting(actor)
 

@@ -8,8 +8,10 @@ others).
 
 Each node is a ``ray start --block`` process of its own session; stopping it (SIGTERM to
 that process) stops the node's Ray processes, and nothing else on the machine. Token
-authentication is off: a cluster of one machine for tests, which any process of this
-machine may join whatever token it has (a real cluster keeps Ray's default, a token).
+authentication is off (a cluster of one machine for tests; a real cluster keeps Ray's
+default, a token): a process that joins it needs :attr:`LocalCluster.env` in its
+environment, because a process that once started a Ray instance of its own is left in
+token mode by Ray and would refuse the cluster's calls.
 """
 
 from __future__ import annotations
