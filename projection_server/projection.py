@@ -66,7 +66,8 @@ _timelines: OrderedDict[str, dict[str, Any]] = OrderedDict()
 _KEEP_TIMELINES = 64
 # The owner of the calling thread's projections (set_owner), and a stop event per owner
 # that makes its waits end at once when it is cancelled.
-_owner = threading.local()
+_owners: dict[int, str] = {}  # thread ident -> owner; janus may not keep a Prolog
+# thread's Python thread state between calls, so threading.local would forget it
 _stops: dict[str, threading.Event] = {}
 
 
@@ -203,9 +204,11 @@ def set_owner(owner: str | None) -> None:
 
     A query's thread calls this once with a token unique to the query; None clears it.
     """
-    _owner.name = owner
-    if owner is not None:
-        with _lock:
+    with _lock:
+        if owner is None:
+            _owners.pop(threading.get_ident(), None)
+        else:
+            _owners[threading.get_ident()] = owner
             _stops.setdefault(owner, threading.Event())
 
 
@@ -213,10 +216,12 @@ def release(owner: str) -> None:
     """Forget ``owner`` once its query has ended."""
     with _lock:
         _stops.pop(owner, None)
+        for ident in [i for i, o in _owners.items() if o == owner]:
+            del _owners[ident]
 
 
 def _thread_owner() -> str | None:
-    return getattr(_owner, 'name', None)
+    return _owners.get(threading.get_ident())
 
 
 def workers() -> int:

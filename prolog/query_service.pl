@@ -76,11 +76,44 @@ engine_limits(Options) :-
     ;   true
     ).
 
-% The query's module: inherits from user, has its own sleep/1.
+% The query's module: inherits from user, has its own sleep/1 and parsers.
 query_module(M) :-
-    redefine_system_predicate(M:sleep(_)),
-    assertz(M:(sleep(Seconds) :- query_service:bounded_sleep(Seconds))),
-    compile_predicates([M:sleep/1]).
+    forall(bounded(Head, Body), bounded_in(M, Head, Body)).
+
+bounded_in(M, Head, Body) :-
+    functor(Head, Name, Arity),
+    redefine_system_predicate(M:Head),
+    assertz(M:(Head :- Body)),
+    compile_predicates([M:Name/Arity]).
+
+bounded(sleep(S), query_service:bounded_sleep(S)).
+bounded(term_to_atom(T, A), query_service:bounded_term_to_atom(T, A)).
+bounded(term_string(T, S), query_service:bounded_term_string(T, S)).
+bounded(term_string(T, S, O), query_service:bounded_term_string(T, S, O)).
+bounded(atom_to_term(A, T, B), query_service:bounded_atom_to_term(A, T, B)).
+bounded(read_term_from_atom(A, T, O), query_service:bounded_read_term_from_atom(A, T, O)).
+bounded(open_string(S, In), query_service:bounded_open_string(S, In)).
+
+% Text a query builds and parses: Prolog's parser recurses on the C stack
+% once per level of nesting, so the text it may parse is bounded in length.
+max_parse_length(1000000).
+
+parsable(Text) :-
+    (   var(Text)
+    ->  true
+    ;   catch(atom_length(Text, Length), _, fail),
+        max_parse_length(Max),
+        Length > Max
+    ->  throw(error(resource_error(parse_length), context(_, max_parse_length(Max))))
+    ;   true
+    ).
+
+bounded_term_to_atom(T, A) :- parsable(A), system:term_to_atom(T, A).
+bounded_term_string(T, S) :- parsable(S), system:term_string(T, S).
+bounded_term_string(T, S, O) :- parsable(S), system:term_string(T, S, O).
+bounded_atom_to_term(A, T, B) :- parsable(A), system:atom_to_term(A, T, B).
+bounded_read_term_from_atom(A, T, O) :- parsable(A), system:read_term_from_atom(A, T, O).
+bounded_open_string(S, In) :- parsable(S), system:open_string(S, In).
 
 solve(M, Text, Options, Json) :-
     prepare(M, Text, Options, Goal, Bindings),
@@ -112,8 +145,9 @@ prepare(M, Text0, Options, Goal, Bindings) :-
     must_be(callable, Goal),
     (   sandboxed(Options)
     ->  safe_goal(M:Goal),
-        (   sub_term(Q, Goal), nonvar(Q), Q = _:S, nonvar(S), S = sleep(_)
-        ->  throw(error(permission_error(call, qualified_sleep, Q), sandbox(Q, [])))
+        (   sub_term(Q, Goal), nonvar(Q), Q = _:S, callable(S),
+            functor(S, Name, Arity), functor(H, Name, Arity), bounded(H, _)
+        ->  throw(error(permission_error(call, qualified_builtin, Q), sandbox(Q, [])))
         ;   true
         )
     ;   true
@@ -170,6 +204,12 @@ sleep_until(End) :-
 :- multifile sandbox:safe_primitive/1.
 
 sandbox:safe_primitive(query_service:bounded_sleep(_)).
+sandbox:safe_primitive(query_service:bounded_term_to_atom(_, _)).
+sandbox:safe_primitive(query_service:bounded_term_string(_, _)).
+sandbox:safe_primitive(query_service:bounded_term_string(_, _, _)).
+sandbox:safe_primitive(query_service:bounded_atom_to_term(_, _, _)).
+sandbox:safe_primitive(query_service:bounded_read_term_from_atom(_, _, _)).
+sandbox:safe_primitive(query_service:bounded_open_string(_, _)).
 
 %!  limited_call(:Goal, +Seconds) is nondet.
 %
@@ -261,5 +301,8 @@ prolog:message(error(syntax_error(trailing_text), string(_, Pos))) -->
       '(one goal per query; join goals with a comma)' ].
 prolog:message(error(resource_error(answer_size), context(_, max_answer(Max)))) -->
     [ 'Resource error: the answer has more than ~D cells (max_answer)'-[Max] ].
-prolog:message(error(permission_error(call, qualified_sleep, _), _)) -->
-    [ 'No permission to call a module-qualified sleep/1: call sleep/1 unqualified' ].
+prolog:message(error(resource_error(parse_length), context(_, max_parse_length(Max)))) -->
+    [ 'Resource error: a query may parse text of at most ~D characters'-[Max] ].
+prolog:message(error(permission_error(call, qualified_builtin, _:G), _)) -->
+    { functor(G, Name, Arity) },
+    [ 'No permission to call ~w/~w module-qualified: call it unqualified'-[Name, Arity] ].

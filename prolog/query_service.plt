@@ -82,4 +82,13 @@ test(huge_error_terms_are_outlined, K == "type_error") :-
 
 sols_t(Text, T, Rs) :- findall(R, query_solution(Text, _{timeout: T}, R), Rs).
 
+test(parsing_long_built_text_is_refused, K == "resource_error") :-
+    sols("format(atom(A), '~*c', [2000000, 0'(]), term_to_atom(_, A)", [R]),
+    get_dict(kind, R, K).
+test(parsing_built_text_still_works, S == "solution") :-
+    sols("term_to_atom(T, 'f(X, \"s\")'), term_string(U, \"g(1)\")", [R]),
+    get_dict(status, R, S).
+test(qualified_parser_refused, K == "permission_error") :-
+    sols("system:term_to_atom(_, 'a')", [R]), get_dict(kind, R, K).
+
 :- end_tests(query_service).

@@ -92,6 +92,12 @@ def test_writing_a_100000_deep_term_built_by_the_query_is_survived(call, goal):
     alive(call)
 
 
+def test_parsing_text_the_query_built_4_million_levels_deep_is_refused(call):
+    r = query(call, "format(atom(O), '~*c', [4000000, 0'(]), term_to_atom(_, O)", timeout=20.0)
+    assert not r.ok and r.error_kind == 'resource_error' and 'parse' in r.message
+    alive(call)
+
+
 def test_next_solution_racing_with_the_opening_of_its_query(call, node):
     import rclpy
     from rclpy.task import Future
