@@ -27,6 +27,7 @@ critical load is proportional to the indenter's radius.
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 
@@ -58,19 +59,17 @@ def equivalent_load(peak_pressure: float, stiffness: float,
 
 
 def curvature_load(force: float, semi_axes: tuple[float, float, float],
-                   point: np.ndarray) -> float:
+                   point: Sequence[float]) -> float:
     """Equivalent load of ``force`` on an unbounded flat face touching ``point`` (shell frame).
 
     ``point`` is projected onto the ellipsoid first (Bullet reports contact points on the
-    collision margin).
+    collision margin). Plain float arithmetic: it runs for every contact in every step.
     """
-    axes = np.asarray(semi_axes)
-    x = np.asarray(point, dtype=float)
-    scale = math.sqrt(float(np.sum((x / axes) ** 2)))
+    a = semi_axes
+    scale = math.sqrt(sum((x / s) ** 2 for x, s in zip(point, a)))
     if scale == 0.0:
         return force
-    x = x / scale
-    radius = float(np.prod(axes) * np.sum(x ** 2 / axes ** 4))
+    radius = a[0] * a[1] * a[2] * sum((x / scale) ** 2 / s ** 4 for x, s in zip(point, a))
     return force * reference_radius(semi_axes) / radius
 
 

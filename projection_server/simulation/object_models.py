@@ -8,16 +8,24 @@ model is any object with ``after_step(physics)`` and ``sample()``
 
 from __future__ import annotations
 
-from typing import Callable, TYPE_CHECKING
+from collections import deque
+import math
+from typing import Any, Callable, TYPE_CHECKING
 
 import numpy as np
 
 from projection_server.simulation import contact_mechanics as cm
 
 if TYPE_CHECKING:
-    from projection_server.simulation.physics import Physics
+    from projection_server.simulation.physics import Gripper, Pad, Physics
 
-__all__ = ['EggShell']
+__all__ = ['BREAK_WINDOW', 'EggShell']
+
+
+BREAK_WINDOW = 1.0 / 60.0   # s over which the shell's load is averaged
+CACHE_FORCE = 0.01          # relative change of a pad's force that re-solves its pressure
+CACHE_SHIFT = 5.0e-5        # m the shell may move on a pad before its pressure is re-solved
+CACHE_TURN = 2.0e-3         # rad it may turn
 
 
 class EggShell:
@@ -27,8 +35,12 @@ class EggShell:
     link, and each group's total normal force (Bullet's constraint solution) is turned into
     an *equivalent load* (:mod:`~projection_server.simulation.contact_mechanics`): the force
     that would give the same peak contact pressure when the egg is squeezed at its equator
-    between flat faces, which is what ``breaking_force`` means. The egg breaks in the first
-    step in which the largest equivalent load reaches ``breaking_force``.
+    between flat faces, which is what ``breaking_force`` means. The shell's load is the
+    largest equivalent load of a step averaged over the last :data:`BREAK_WINDOW` of
+    simulated time, and the egg breaks in the first step in which it reaches
+    ``breaking_force``. The window makes the criterion a property of the physics, not of the
+    time step: a steady squeeze gives its force at any step size, and an impact its impulse
+    over the window, where a single step's peak grows as the step shrinks.
 
     * A gripper pad's contact is solved as a rubber layer (the pad's stiffness) over the
       pad's real face. A pad centred on the egg touches its equator with its whole contact
@@ -38,6 +50,10 @@ class EggShell:
       force, so the effect does too. This is why an egg grasped off-centre breaks at a lower
       grip force. When the egg slips and a pad slides over it, the pad's rounded rim rides on
       the shell and concentrates the load further (about 2 to 3 times the grip force).
+      The pad's solution is kept while the pad's force changes by less than
+      :data:`CACHE_FORCE` and the shell moves on the pad by less than :data:`CACHE_SHIFT`
+      and :data:`CACHE_TURN` (the load is scaled with the force meanwhile): within the
+      model's own discretisation error, at a fraction of the cost of a physics step.
     * Any other contact (table, floor, other objects) is a large flat face: the equivalent
       load is the normal force scaled by the shell's curvature at the contact point (an egg
       is weaker at its pointed ends).
@@ -50,21 +66,36 @@ class EggShell:
 
     def __init__(self, name: str, semi_axes: tuple[float, float, float],
                  breaking_force: float | None,
-                 replace: Callable[[Physics, str], None]):
+                 replace: Callable[[Physics, str], None], cache: bool = True):
         self.name = name
         self.semi_axes = semi_axes
         self.breaking_force = breaking_force
         self.broken = False
-        self.load = 0.0           # equivalent load of the last step [N]
+        self.load = 0.0           # the shell's load (window average) after the last step [N]
         self._peak = 0.0          # largest load since the last sample [N]
         self._replace = replace
+        self._cache_on = cache
+        self._window: deque[float] = deque()
+        self._window_sum = 0.0
+        self._window_steps = 0
+        # (body, link) of a pad -> (force, shell pose in the face's frame, load) of its
+        # last solution
+        self._cache: dict[tuple[int, int], tuple[float, tuple[float, ...], Quat, float]] = {}
+        self._pads: dict[tuple[int, int], tuple[Gripper, Pad]] | None = None
 
     def after_step(self, physics: Physics) -> None:
-        """Measure this step's load; break if it reaches the breaking force."""
+        """Measure this step's load; break if the window's average reaches the limit."""
         if self.broken:
             self.load = 0.0
             return
-        self.load = self._measure(physics)
+        if not self._window_steps:
+            self._window_steps = max(1, round(BREAK_WINDOW * physics.settings.physics.rate_hz))
+        current = self._measure(physics)
+        self._window.append(current)
+        self._window_sum += current
+        if len(self._window) > self._window_steps:
+            self._window_sum -= self._window.popleft()
+        self.load = max(0.0, self._window_sum / self._window_steps)
         self._peak = max(self._peak, self.load)
         if self.breaking_force is not None and self.load >= self.breaking_force:
             self.broken = True
@@ -80,32 +111,89 @@ class EggShell:
         body_id = physics.body(self.name).body_id
         points = c.getContactPoints(bodyA=body_id)
         if not points:
+            self._cache.clear()
             return 0.0
-        pos, orn = c.getBasePositionAndOrientation(body_id)
-        pos = np.asarray(pos)
-        rot = np.asarray(c.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        groups: dict[tuple[int, int], list[tuple[float, np.ndarray]]] = {}
+        # Plain floats: a step's handful of contacts costs less than numpy's overhead.
+        groups: dict[tuple[int, int], list[float]] = {}
         for point in points:
-            groups.setdefault((point[2], point[4]), []).append((point[9], np.asarray(point[5])))
-        grippers = {g.body_id: g for g in physics.grippers.values()}
-        pads = {(body, face[0].link): face
-                for body in {key[0] for key in groups} & grippers.keys()
-                for face in grippers[body].pad_faces()}
+            f, (x, y, z) = point[9], point[5]
+            group = groups.get((point[2], point[4]))
+            if group is None:
+                groups[(point[2], point[4])] = [f, f * x, f * y, f * z]
+            else:
+                group[0] += f
+                group[1] += f * x
+                group[2] += f * y
+                group[3] += f * z
+        if self._pads is None:
+            self._pads = {(g.body_id, pad.link): (g, pad)
+                          for g in physics.grippers.values() for pad in g.pads}
+        for key in [k for k in self._cache if k not in groups]:
+            del self._cache[key]
+        pos, orn = c.getBasePositionAndOrientation(body_id)
         loads = []
-        for key, group in groups.items():
-            force = sum(f for f, _ in group)
+        for key, (force, fx, fy, fz) in groups.items():
             if force <= 0.0:
                 continue
-            face = pads.get(key)
-            peak = None
-            if face is not None:
-                pad, centre, axes, normal = face
-                peak = cm.pad_peak_pressure(force, self.semi_axes, rot, pos, centre, axes,
-                                            normal, pad.half_extents, pad.stiffness,
-                                            pad.rim_radius)
-            if peak is not None:
-                loads.append(cm.equivalent_load(peak, face[0].stiffness, self.semi_axes))
-            else:
-                where = sum(f * p for f, p in group) / force
-                loads.append(cm.curvature_load(force, self.semi_axes, rot.T @ (where - pos)))
+            pad = self._pads.get(key)
+            load = (self._pad_load(c, key, pad[1], force, pos, orn) if pad is not None
+                    else None)
+            if load is None:
+                where = (fx / force - pos[0], fy / force - pos[1], fz / force - pos[2])
+                load = cm.curvature_load(force, self.semi_axes, _rotate(_conjugate(orn), where))
+            loads.append(load)
         return max(loads, default=0.0)
+
+    def _pad_load(self, client: Any, key: tuple[int, int], pad: Pad, force: float,
+                  pos: tuple[float, float, float],
+                  orn: tuple[float, float, float, float]) -> float | None:
+        """Equivalent load of a pad's contact; None if the pad is not over the shell."""
+        state = client.getLinkState(key[0], key[1], computeForwardKinematics=True)
+        inverse = _conjugate(state[5])
+        offset = _rotate(inverse, tuple(p - q for p, q in zip(pos, state[4])))
+        turn = _multiply(inverse, orn)
+        cached = self._cache.get(key)
+        if cached is not None and self._cache_on:
+            force0, offset0, turn0, load0 = cached
+            if (abs(force - force0) <= CACHE_FORCE * force0
+                    and max(abs(a - b) for a, b in zip(offset, offset0)) <= CACHE_SHIFT
+                    and _angle(turn, turn0) <= CACHE_TURN):
+                return load0 * force / force0
+        origin = np.asarray(state[4])
+        rot = np.asarray(client.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+        shell = np.asarray(client.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        peak = cm.pad_peak_pressure(force, self.semi_axes, shell, np.asarray(pos),
+                                    origin + rot @ pad.centre, (rot @ np.asarray(pad.axes).T).T,
+                                    rot @ pad.normal, pad.half_extents, pad.stiffness,
+                                    pad.rim_radius)
+        if peak is None:
+            self._cache.pop(key, None)
+            return None
+        load = cm.equivalent_load(peak, pad.stiffness, self.semi_axes)
+        self._cache[key] = (force, offset, turn, load)
+        return load
+
+
+Quat = tuple[float, float, float, float]
+
+
+def _conjugate(q: Quat) -> Quat:
+    return (-q[0], -q[1], -q[2], q[3])
+
+
+def _multiply(a: Quat, b: Quat) -> Quat:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def _rotate(q: Quat, v: tuple[float, float, float]) -> tuple[float, float, float]:
+    x, y, z, _ = _multiply(_multiply(q, (v[0], v[1], v[2], 0.0)), _conjugate(q))
+    return (x, y, z)
+
+
+def _angle(a: Quat, b: Quat) -> float:
+    """Angle [rad] of the rotation between two unit quaternions."""
+    dot = abs(sum(p * q for p, q in zip(a, b)))
+    return 2.0 * math.acos(min(1.0, dot))

@@ -8,6 +8,7 @@ the object models that run after every physics step.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import math
 from typing import Any, Protocol, TYPE_CHECKING
 
 import numpy as np
@@ -134,11 +135,14 @@ class Gripper:
 
     The fingers are force limited: closing drives them at a set speed with a motor whose force
     saturates at the commanded grip force, so once the pads touch an object they squeeze it
-    with that force.
+    with that force, at most ``max_force``; they open to at most ``max_opening``.
+    Position control corrects ``tracking_rate`` [1/s] of its error per second, whatever the
+    time step (Bullet's position gain is a fraction per step).
     """
 
     def __init__(self, client: Any, name: str, body_id: int, joints: dict[str, Any],
-                 pads: list[Pad], max_joint_force: float):
+                 pads: list[Pad], max_joint_force: float, max_force: float = math.inf,
+                 max_opening: float = math.inf, position_gain: float = 0.1):
         self.name = name
         self.body_id = body_id
         self.pads = pads
@@ -147,6 +151,9 @@ class Gripper:
         self._approach = joints['approach']
         self._fingers = tuple(joints['fingers'])
         self._max_joint_force = max_joint_force
+        self.max_force = max_force
+        self.max_opening = max_opening
+        self._gain = position_gain
         self.command = 'open'
         self.commanded_force = 0.0
         for j in self._fingers:   # velocity motors off until commanded
@@ -165,7 +172,7 @@ class Gripper:
         c.resetJointState(self.body_id, self._approach, approach)
         c.resetJointState(self.body_id, self._lift, lift)
         for j in self._fingers:
-            c.resetJointState(self.body_id, j, opening / 2)
+            c.resetJointState(self.body_id, j, min(opening, self.max_opening) / 2)
         self.move(approach, lift)
         self.open(opening, speed=0.1)
 
@@ -174,22 +181,25 @@ class Gripper:
         for joint, target in ((self._approach, approach), (self._lift, lift)):
             self._client.setJointMotorControl2(
                 self.body_id, joint, self._client.POSITION_CONTROL,
-                targetPosition=target, force=self._max_joint_force)
+                targetPosition=target, force=self._max_joint_force, positionGain=self._gain)
 
     def close(self, force: float, speed: float) -> None:
-        """Close both fingers at ``speed`` [m/s], each pushing with at most ``force`` [N]."""
+        """Close both fingers at ``speed`` [m/s], each pushing with at most ``force`` [N]
+        (and at most the gripper's ``max_force``)."""
+        force = min(force, self.max_force)
         self.command, self.commanded_force = 'close', force
         for j in self._fingers:
             self._client.setJointMotorControl2(self.body_id, j, self._client.VELOCITY_CONTROL,
                                                targetVelocity=-speed, force=force)
 
     def open(self, opening: float, speed: float) -> None:
-        """Open the fingers to ``opening`` [m] between the pads."""
+        """Open the fingers to ``opening`` [m] between the pads (at most ``max_opening``)."""
         self.command, self.commanded_force = 'open', 0.0
         for j in self._fingers:
             self._client.setJointMotorControl2(
-                self.body_id, j, self._client.POSITION_CONTROL, targetPosition=opening / 2,
-                maxVelocity=speed, force=self._max_joint_force)
+                self.body_id, j, self._client.POSITION_CONTROL,
+                targetPosition=min(opening, self.max_opening) / 2, maxVelocity=speed,
+                force=self._max_joint_force, positionGain=self._gain)
 
     def opening(self) -> float:
         """Distance between the pad faces [m]."""

@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.scenario import Entity, Scenario
     from projection_server.simulation.settings import PhysicsSettings, Settings
 
-__all__ = ['assets_dir', 'build_world', 'ellipsoid_vertices']
+__all__ = ['assets_dir', 'build_world', 'ellipsoid_vertices', 'settle']
 
 PARK_HEIGHT = 1.0   # m above the robot's pose, out of the way until a program moves it
 EGG_COLOR = (0.95, 0.9, 0.8, 1.0)
@@ -57,6 +57,11 @@ REMAINS_COLOR = (0.95, 0.75, 0.2, 1.0)
 REMAINS_FLATNESS = 0.3   # height of a broken egg's remains relative to its diameter
 CUP_SEGMENTS = 16        # wall boxes of a cup
 PARTICLE_GAP = 1.05      # spacing of spawned particles relative to their diameter
+SPAWN_CLEARANCE = 1e-4   # m left between a spawned egg and what it would otherwise touch
+SETTLE_CHECK = 0.01      # s of settling between checks whether the world is at rest
+SETTLE_MIN, SETTLE_MAX = 0.1, 1.0   # s of settling at least and at most
+TRACKING_RATE = 24.0     # 1/s: position control's error correction (0.1 per step at 240 Hz)
+REST_SPEED = 1e-3        # m/s (and rad/s per 0.1 m) below which a body is at rest
 
 
 def assets_dir() -> Path:
@@ -75,6 +80,52 @@ def build_world(client: Any, scenario: Scenario, settings: Settings) -> Physics:
         elif entity.cls != 'gripper':   # grippers are built by their robot
             _BUILDERS[entity.cls](physics, entity)
     return physics
+
+
+def settle(physics: Physics) -> float:
+    """Let the world come to rest before a program starts; returns the seconds it took.
+
+    The engine is stepped without object models and without advancing the projection's
+    clock, for at least :data:`SETTLE_MIN` and until every moving body is slower than
+    :data:`REST_SPEED` (at most :data:`SETTLE_MAX`), so that every projection starts from
+    a world at rest whatever its time step: contacts of bodies spawned onto each other
+    carry their weights, not a recovery from a spawn.
+    """
+    c = physics.client
+    rate = physics.settings.physics.rate_hz
+    chunk = max(1, round(SETTLE_CHECK * rate))
+    moving = [b.body_id for b in physics.bodies.values()
+              if not b.static and b.cls != 'robot']
+    steps = 0
+    while steps < SETTLE_MAX * rate:
+        for _ in range(chunk):
+            c.stepSimulation()
+        steps += chunk
+        if steps >= SETTLE_MIN * rate and all(_at_rest(c, body) for body in moving):
+            break
+    return steps / rate
+
+
+def _at_rest(client: Any, body_id: int) -> bool:
+    linear, angular = client.getBaseVelocity(body_id)
+    return (math.hypot(*linear) < REST_SPEED
+            and 0.1 * math.hypot(*angular) < REST_SPEED)
+
+
+def _lift_clear(physics: Physics, body_id: int) -> None:
+    """Raise a newly spawned body out of any body it penetrates (a pose given as the
+    nominal contact, e.g. an egg lying on the table, touches within Bullet's margins)."""
+    c = physics.client
+    for _ in range(4):
+        depth = max((-p[8] for other in physics.bodies.values() if other.body_id != body_id
+                     for p in c.getClosestPoints(body_id, other.body_id, SPAWN_CLEARANCE)),
+                    default=-SPAWN_CLEARANCE)
+        if depth <= -SPAWN_CLEARANCE:
+            return
+        position, orientation = c.getBasePositionAndOrientation(body_id)
+        c.resetBasePositionAndOrientation(
+            body_id, (position[0], position[1], position[2] + depth + SPAWN_CLEARANCE),
+            orientation)
 
 
 def ellipsoid_vertices(semi_axes: tuple[float, float, float],
@@ -170,15 +221,21 @@ def _build_robot(physics: Physics, entity: Entity, gripper: Entity | None = None
     for box in boxes.values():
         link_shapes.setdefault(link_index[box['link']], []).append(
             (Shape('box', box['size'], (0.3, 0.3, 0.35, 1.0)), box['origin']))
+    limits = {'max_force': math.inf, 'max_opening': math.inf}
     if gripper is not None:
+        limits = {key: gripper.properties[key] for key in limits}
         for link in range(-1, c.getNumJoints(body_id)):
             c.changeDynamics(body_id, link,
                              lateralFriction=float(gripper.properties['friction']),
                              restitution=float(gripper.properties['restitution']))
+        for finger in joint_map['fingers']:   # the fingers' travel ends at max_opening
+            c.changeDynamics(body_id, finger, jointUpperLimit=limits['max_opening'] / 2)
     body = physics.add_body(Body(entity.name, entity.cls, body_id, False, None,
                                  links=links, link_shapes=link_shapes))
+    gain = min(1.0, TRACKING_RATE / physics.settings.physics.rate_hz)
     physics.grippers[entity.name] = Gripper(c, body.name, body_id, joint_map, pads,
-                                            float(spec['gantry_force']))
+                                            float(spec['gantry_force']), position_gain=gain,
+                                            **limits)
 
 
 @functools.cache
@@ -227,6 +284,7 @@ def _build_egg(physics: Physics, entity: Entity) -> None:
     body = _ellipsoid_body(physics, semi_axes, p['mass'], entity.pose.xyz,
                            _orientation(c, entity))
     _surface(c, body, p)
+    _lift_clear(physics, body)
     physics.add_body(Body(entity.name, entity.cls, body, False,
                           Shape('sphere', tuple(2 * s for s in semi_axes), EGG_COLOR)))
     physics.models.append(EggShell(entity.name, semi_axes, p.get('breaking_force'),

@@ -5,7 +5,9 @@ from __future__ import annotations
 import copy
 
 import pytest
+import yaml
 
+from projection_server.simulation import load_settings
 from projection_server.workers.local import WorkerPool
 
 # The grasping scenario of Kunze et al. (2011), sec. IV-A, in the form of docs/contracts.md.
@@ -50,3 +52,18 @@ def pool(tmp_path_factory):
     """One worker, bags in a fresh directory; shared by the tests of a module."""
     with WorkerPool(tmp_path_factory.mktemp('bags'), workers=1) as shared:
         yield shared
+
+
+@pytest.fixture
+def refined_settings(tmp_path):
+    """``refined_settings(factor)``: config/physics.yaml with a ``factor`` times finer time
+    step (control and logging at the same rates), read through the settings loader."""
+    def refine(factor):
+        data = load_settings().to_dict()
+        data['physics']['rate_hz'] *= factor
+        for key in ('steps_per_control', 'steps_per_log'):
+            data['control'][key] *= factor
+        path = tmp_path / f'physics_x{factor}.yaml'
+        path.write_text(yaml.safe_dump(data))
+        return load_settings(path)
+    return refine

@@ -5,9 +5,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pybullet
+from pybullet_utils.bullet_client import BulletClient
 import pytest
 
-from projection_server.simulation import contact_mechanics as cm
+from projection_server.simulation import contact_mechanics as cm, load_settings
+from projection_server.simulation.programs import get as get_program
+from projection_server.simulation.scenario import parse_scenario
+from projection_server.simulation.world import build_world
 
 EGG = (0.029, 0.022, 0.022)     # semi-axes [m]
 K = 1.0e9                       # pad foundation modulus [N/m^3]
@@ -80,3 +85,61 @@ def test_indentation_balances_the_force_exactly():
     delta, active = cm.winkler_indentation(gaps, 1e-6, 0.1, 1e9)
     assert 1e9 * 1e-6 * np.clip(delta - gaps, 0, None).sum() == pytest.approx(0.1)
     assert active == int((gaps < delta).sum())
+
+
+def shell_loads(client, scenario, settings, seconds, cache=True, program=None):
+    """Per-step loads of egg1's shell model over ``seconds`` of a world (and program)."""
+    physics = build_world(client, parse_scenario(scenario), settings)
+    task = None
+    if program is not None:
+        task = get_program(program[0]).create(physics, parse_scenario(scenario), program[1],
+                                              np.random.default_rng(0))
+    (shell,) = physics.models
+    shell._cache_on = cache
+    loads, peaks = [], []
+    for step in range(round(seconds * settings.physics.rate_hz)):
+        if task is not None and step % settings.control.steps_per_control == 0:
+            task.control(physics)
+        physics.step()
+        loads.append(shell.load)
+        peaks.append(shell._window[-1] if shell._window else 0.0)
+    return np.array(loads), np.array(peaks)
+
+
+@pytest.fixture
+def client():
+    bullet = BulletClient(connection_mode=pybullet.DIRECT)
+    yield bullet
+    bullet.disconnect()
+
+
+def test_the_load_of_a_drop_converges_as_the_time_step_shrinks(client, make_scenario,
+                                                               refined_settings):
+    scenario = make_scenario(breaking_force=None)
+    scenario['entities'][-1]['pose']['xyz'][2] += 0.05   # 5 cm above the table
+    coarse, coarse_peaks = shell_loads(client, scenario, refined_settings(1), 0.4)
+    fine, fine_peaks = shell_loads(client, scenario, refined_settings(4), 0.4)
+    # A single step's force grows as the step shrinks; the window's average does not.
+    assert fine_peaks.max() > 2.5 * coarse_peaks.max()
+    assert fine.max() == pytest.approx(coarse.max(), rel=0.1)
+    assert 1.0 < coarse.max() < 10.0
+
+
+def test_cached_pad_solutions_are_within_the_models_own_tolerance(client, make_scenario):
+    # The pad model's own discretisation error (40 x 40 grid against a 4 times finer one)
+    # at an off-centre grasp is a few per cent; re-using solutions adds well under that.
+    grid = cm._GRID
+    try:
+        cm._GRID = 160
+        fine_grid = load_of_pad(9.0, 0.02)
+    finally:
+        cm._GRID = grid
+    tolerance = abs(load_of_pad(9.0, 0.02) / fine_grid - 1.0)
+    assert 0.005 < tolerance < 0.05
+    scenario = make_scenario(breaking_force=None)
+    program = ('grasp_object', {'force': 9.0, 'position': 0.02})
+    cached, _ = shell_loads(client, scenario, load_settings(), 3.0, True, program)
+    solved, _ = shell_loads(client, scenario, load_settings(), 3.0, False, program)
+    held = solved > 1.0
+    assert held.sum() > 300
+    assert np.abs(cached[held] / solved[held] - 1.0).max() < tolerance / 2

@@ -80,6 +80,27 @@ def test_the_same_projection_gives_the_same_timeline_and_bag(make_scenario, tmp_
     assert (bags[0] / 'grasp.mcap').read_bytes() == (bags[1] / 'grasp.mcap').read_bytes()
 
 
+def outcome(timeline):
+    return ('break' if events(timeline, 'break') else 'slip' if events(timeline, 'slip')
+            else 'ok')
+
+
+@pytest.mark.parametrize('force, position, expected', [
+    (1.0, 0.0, 'slip'), (5.0, 0.02, 'ok'), (9.0, 0.02, 'break')])
+def test_table_i_outcomes_do_not_depend_on_the_time_step(make_scenario, refined_settings,
+                                                        tmp_path, force, position, expected):
+    job = Job.checked(make_scenario(), 'grasp_object', {'force': force, 'position': position})
+    outcomes, loads = [], []
+    for factor in (1, 4):
+        bag = tmp_path / f'x{factor}'
+        run_projection(job, refined_settings(factor), bag)
+        timeline = translate_bag(bag)
+        outcomes.append(outcome(timeline))
+        loads.append(quantity(timeline, 'max_load'))
+    assert outcomes == [expected, expected]
+    assert loads[1] == pytest.approx(loads[0], rel=0.15)
+
+
 def test_the_timeline_has_the_contract_shape(project, make_scenario):
     timeline = project(make_scenario(), force=5.0)
     assert set(timeline) == {'fluents', 'events', 'quantities', 'meta'}

@@ -16,6 +16,7 @@ import numpy as np
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.programs.registry import Parameter, Program, register
+from projection_server.simulation.world import settle
 
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Gripper, Physics
@@ -52,6 +53,7 @@ class GraspObject:
                                   f'grasp_object needs an {TARGET_CLASS} and a robot')
         self.force = params['force']
         self.gripper: Gripper = physics.grippers[robot.name]
+        settle(physics)   # the egg lies at rest before the gripper is placed beside it
         position, orientation = physics.pose(target.name)
         rot = np.asarray(physics.client.getMatrixFromQuaternion(orientation)).reshape(3, 3)
         yaw = math.atan2(rot[1, 0], rot[0, 0])   # heading of the egg's long axis

@@ -1,0 +1,99 @@
+"""Cost of the egg's contact-pressure model against the physics step it follows.
+
+Runs the knowledge base's grasping scenario (``grasp_object``, Table I forces and positions)
+in this process, timing every ``stepSimulation`` and every ``EggShell.after_step`` separately,
+once with the model's cached pad solutions (as projections run) and once solving every pad
+contact in every step (the model before the cache). Prints the medians over the grasps of
+the model's time per step, the step's time per step and their ratio.
+
+    tools/with_env.sh python bench/egg_model_cost.py [--forces 1,5,9] [--positions 0,0.02]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+import statistics
+import subprocess
+import time
+
+import numpy as np
+
+from projection_server.simulation import load_settings
+from projection_server.simulation.job import Job
+from projection_server.simulation.programs import get as get_program
+from projection_server.simulation.scenario import parse_scenario
+from projection_server.simulation.world import build_world
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def grasping_scenario() -> dict:
+    """The knowledge base's ``grasping`` scenario description, from SWI-Prolog."""
+    goal = ('knowledge_base_load, scenario_description(grasping, D), '
+            'json_write_dict(current_output, D), halt')
+    out = subprocess.run(
+        ['swipl', '-q', '-g', 'use_module(library(http/json))',
+         '-g', 'use_module(prolog/knowledge_base)', '-g', 'use_module(prolog/scenario)',
+         '-g', goal], cwd=ROOT, check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def grasp(scenario: dict, force: float, position: float, cache: bool) -> tuple[float, float]:
+    """Seconds of stepping and of the egg model per physics step of one grasp."""
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+
+    settings = load_settings()
+    job = Job.checked(scenario, 'grasp_object', {'force': force, 'position': position})
+    parsed = parse_scenario(job.scenario)
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        physics = build_world(client, parsed, settings)
+        task = get_program('grasp_object').create(physics, parsed, dict(job.params),
+                                                  np.random.default_rng(0))
+        (egg,) = physics.models
+        egg._cache_on = cache
+        physics.models = []   # stepped and measured separately below
+        steps = int(task.duration * settings.physics.rate_hz)
+        stepping = model = 0.0
+        for step in range(steps):
+            if step % settings.control.steps_per_control == 0:
+                task.control(physics)
+            t0 = time.perf_counter()
+            client.stepSimulation()
+            t1 = time.perf_counter()
+            physics.step_count += 1
+            egg.after_step(physics)
+            t2 = time.perf_counter()
+            stepping += t1 - t0
+            model += t2 - t1
+        return stepping / steps, model / steps
+    finally:
+        client.disconnect()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--forces', default='1,3,5,7,9,11')
+    parser.add_argument('--positions', default='-0.02,0,0.02')
+    args = parser.parse_args()
+    cells = [(float(f), float(p)) for p in args.positions.split(',')
+             for f in args.forces.split(',')]
+    scenario = grasping_scenario()
+    settings = load_settings()
+    print(f'{len(cells)} grasps, {settings.physics.rate_hz} Hz, '
+          f'{settings.physics.solver_iterations} solver iterations')
+    for cache in (True, False):
+        rows = [grasp(scenario, f, p, cache) for f, p in cells]
+        step = statistics.median(r[0] for r in rows) * 1e6
+        model = statistics.median(r[1] for r in rows) * 1e6
+        ratios = statistics.median(r[1] / r[0] for r in rows)
+        label = 'cached pad solutions' if cache else 'every step solved'
+        print(f'{label:>22}: model {model:7.1f} us/step, step {step:7.1f} us/step, '
+              f'model/step {ratios:.2f} (median of {len(rows)})')
+
+
+if __name__ == '__main__':
+    main()
