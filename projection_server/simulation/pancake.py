@@ -59,7 +59,8 @@ COLOR = (0.85, 0.65, 0.3, 1.0)
 SELF_GROUP = 0x100        # collision group bit of pancake segments (they skip each other;
 #                           Bullet uses 1 and 2 for dynamic and static bodies)
 MAX_SEGMENTS = 32         # base + 31 spherical joints: what PyBullet reports states of
-SERVO_GAIN = 0.3          # position gain of the joint servos (the torque bound is the spring)
+SERVO_RATE = 72.0         # 1/s the joint servos correct of their error (0.3 per step at 240 Hz;
+                          # the torque bound is the spring)
 
 
 @dataclass(frozen=True)
@@ -210,7 +211,8 @@ def build_pancake(physics: Physics, entity: Entity) -> None:
                           links={j: segments[k].name for j, k in segment.items() if j >= 0},
                           link_shapes=link_shapes))
     physics.models.append(PancakeSprings(entity.name, c, body_id, len(links),
-                                         p['joint_stiffness'], p['joint_damping']))
+                                         p['joint_stiffness'], p['joint_damping'],
+                                         physics.settings.physics.rate_hz))
 
 
 def _collision_shape(c: Any, s: Segment, offset: np.ndarray) -> int:
@@ -263,8 +265,9 @@ class PancakeSprings:
     """
 
     def __init__(self, name: str, client: Any, body_id: int, joints: int, stiffness: float,
-                 damping: float):
+                 damping: float, rate_hz: float):
         self.name = name
+        self._gain = min(1.0, SERVO_RATE / rate_hz)
         self.load = 0.0
         self._client, self._body = client, body_id
         self._joints = list(range(joints))
@@ -286,7 +289,7 @@ class PancakeSprings:
             self._body, self._joints, c.POSITION_CONTROL,
             targetPositions=[[0.0, 0.0, 0.0, 1.0]] * len(self._joints),
             targetVelocities=[[0.0, 0.0, 0.0]] * len(self._joints),
-            positionGains=[SERVO_GAIN] * len(self._joints),
+            positionGains=[self._gain] * len(self._joints),
             velocityGains=[1.0] * len(self._joints), forces=forces)
 
     def sample(self) -> tuple[float, float, bool]:
