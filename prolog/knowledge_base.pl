@@ -14,6 +14,7 @@
             kb_class_pose/2,            % +Class, -Pose:dict
             kb_property_unit/2,         % ?Key, ?Unit
             kb_check_property/4,        % +Class, +Key, +Value0, -Value
+            kb_class_properties/2,      % +Class, -Keys:list(atom)
             kb_check_pose/2             % +Pose0, -Pose:dict
           ]).
 :- use_module(library(semweb/rdf11)).
@@ -525,16 +526,44 @@ kb_check_property(Class, Key, Value0, Value) :-
     ->  true
     ;   throw(error(domain_error(entity_property, Key), _))
     ),
-    (   rdf(P, kitchen:appliesTo, D),
-        \+ rdf_reachable(ClassIRI, rdfs:subClassOf, D)
-    ->  format(atom(Msg), 'not a property of class ~w', [Class]),
+    (   applies_to(P, ClassIRI)
+    ->  true
+    ;   kb_class_properties(Class, Keys),
+        atomic_list_concat(Keys, ', ', Accepted),
+        format(atom(Msg), 'not a property of class ~w (its properties: ~w)',
+               [Class, Accepted]),
         throw(error(domain_error(entity_property, Key), context(_, Msg)))
-    ;   true
     ),
     (   Kind = data(Range)
     ->  check_value(Range, Key, Value0, Value)
     ;   must_be(atom, Value0),
         Value = Value0
+    ).
+
+%!  kb_class_properties(+Class, -Keys:list(atom)) is det.
+%
+%   Keys are the properties entities of Class may have, sorted: those
+%   that apply to it (kitchen:appliesTo one of its classes, or no
+%   appliesTo at all).  They are the properties the simulator builds
+%   an entity of Class from.
+%
+%   @error existence_error(class, Class) if Class is not a KB class.
+
+kb_class_properties(Class, Keys) :-
+    known_class(Class, ClassIRI),
+    findall(Key, ( rdf(P, rdf:type, _),
+                   property_kind(P, _),
+                   applies_to(P, ClassIRI),
+                   rdf_global_id(kitchen:Key, P) ), Keys0),
+    sort(Keys0, Keys).
+
+% applies_to(+P, +ClassIRI): P has no kitchen:appliesTo, or one of its
+% kitchen:appliesTo classes is ClassIRI or a superclass of it.
+applies_to(P, ClassIRI) :-
+    (   rdf(P, kitchen:appliesTo, _)
+    ->  once(( rdf(P, kitchen:appliesTo, D),
+               rdf_reachable(ClassIRI, rdfs:subClassOf, D) ))
+    ;   true
     ).
 
 % check_value(+RangeIRI, +Key, +Value0, -Value)

@@ -224,6 +224,17 @@ test(check_unknown_key, error(domain_error(entity_property, colour))) :-
     kb_check_property(egg, colour, red, _).
 test(check_pose_is_no_property, error(domain_error(entity_property, x))) :-
     kb_check_property(egg, x, 1, _).
+test(class_properties_of_egg, Keys == [breaking_force, diameter, friction, length, mass,
+                                        restitution, rolling_friction, shape,
+                                        spinning_friction]) :-
+    kb_class_properties(egg, Keys).
+test(class_properties_of_environment, Keys == [gravity]) :-
+    kb_class_properties(environment, Keys).
+test(check_property_of_one_of_several_classes, V == 0.01) :-
+    kb_check_property(particle_fluid, rolling_friction, 0.01, V).
+test(check_property_of_none_of_several_classes,
+     error(domain_error(entity_property, rolling_friction))) :-
+    kb_check_property(cup, rolling_friction, 0.01, _).
 test(check_inapplicable_key, error(domain_error(entity_property, breaking_force))) :-
     kb_check_property(table, breaking_force, 10, _).
 test(check_reference_type, error(type_error(atom, 3))) :-

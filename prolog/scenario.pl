@@ -19,7 +19,8 @@
 :- use_module(knowledge_base,
               [ kb_entity/1, kb_entity_description/2, kb_scenario/2,
                 kb_class/1, kb_simulator_class/2, kb_class_defaults/2,
-                kb_class_pose/2, kb_check_property/4, kb_check_pose/2 ]).
+                kb_class_pose/2, kb_check_property/4, kb_check_pose/2,
+                kb_class_properties/2 ]).
 :- use_module(object_factory, [object_type/1, object_model/3]).
 
 /** <module> Scenarios: the entities a projection runs on
@@ -196,14 +197,29 @@ explicit_entity(Name, Class, Properties, Entity) :-
         kb_class_pose(Class, Pose)
     ),
     dict_pairs(Given0, _, Pairs0),
-    maplist(check_pair(Class), Pairs0, Pairs),
+    maplist(check_pair(Name, Class), Pairs0, Pairs),
     dict_pairs(Given, _, Pairs),
     kb_class_defaults(Class, Defaults),
     Entity = _{name: Name, class: SimClass, pose: Pose,
                properties: Defaults.put(Given), parts: []}.
 
-check_pair(Class, Key-Value0, Key-Value) :-
-    kb_check_property(Class, Key, Value0, Value).
+check_pair(Name, Class, Key-Value0, Key-Value) :-
+    check_property(Name, Class, Key, Value0, Value).
+
+% check_property(+Name, +Class, +Key, +Value0, -Value): kb_check_property/4,
+% with an unknown property's error naming the entity and the accepted keys
+% (what the simulator builds an entity of Class from).
+check_property(Name, Class, Key, Value0, Value) :-
+    catch(kb_check_property(Class, Key, Value0, Value),
+          error(domain_error(entity_property, Key), _),
+          unknown_property(Name, Class, Key)).
+
+unknown_property(Name, Class, Key) :-
+    kb_class_properties(Class, Keys),
+    atomic_list_concat(Keys, ', ', Accepted),
+    format(atom(Msg), '~w (~w) has no such property; the simulator builds it from ~w',
+           [Name, Class, Accepted]),
+    throw(error(domain_error(entity_property, Key), context(_, Msg))).
 
 % entity_names(+Entity, -Names): Entity's name and its parts' names.
 entity_names(Entity, [Entity.name|Names]) :-
@@ -287,7 +303,9 @@ sub_entity(E, Sub) :-
 %   @error existence_error(scenario, Scenario) for an unknown scenario.
 %   @error permission_error(modify, scenario, Scenario) for a KB scenario.
 %   @error existence_error(entity, Name) if Name is not in Scenario.
-%   @error domain_error(entity_property, Key) for an unknown property.
+%   @error domain_error(entity_property, Key) for a property the simulator
+%          does not build the entity from (the message names the entity
+%          and the properties it accepts; kb_class_properties/2).
 %   @error type_error(Type, Value) for a value of the wrong type.
 
 scenario_set_property(Scenario, Name, Key, Value) :-
@@ -308,7 +326,7 @@ set_property_(Scenario, Name, Key, Value) :-
     (   Key == pose
     ->  kb_check_pose(Value, Pose),
         Entity1 = Entity.put(pose, Pose)
-    ;   kb_check_property(Entity.class, Key, Value, V),
+    ;   check_property(Name, Entity.class, Key, Value, V),
         Entity1 = Entity.put(properties, Entity.properties.put(Key, V))
     ),
     replace_entity(Top, Name, Entity1, Top1),

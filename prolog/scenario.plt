@@ -238,10 +238,22 @@ test(set_property_leaves_kb_alone, [setup(fresh(S)), cleanup(gone(S)), F == 0.35
     scenario_set_property(S, egg1, friction, 0.2),
     kb_entity_properties(egg1, P),
     F = P.friction.
-test(set_property_new_key, [setup(fresh(S)), cleanup(gone(S)), R == 0.01]) :-
+test(set_property_the_simulator_does_not_build,
+     [setup(fresh(S)), cleanup(gone(S)),
+      error(domain_error(entity_property, rolling_friction))]) :-
     add_to_scenario(S, kitchen_env),
-    scenario_set_property(S, floor1, rolling_friction, 0.01),
-    prop(S, floor1, rolling_friction, R).
+    scenario_set_property(S, floor1, rolling_friction, 0.01).
+test(set_property_error_names_entity_and_accepted_keys,
+     [setup(fresh(S)), cleanup(gone(S))]) :-
+    add_to_scenario(S, kitchen_env),
+    catch(scenario_set_property(S, floor1, rolling_friction, 0.01),
+          error(domain_error(entity_property, rolling_friction), context(_, Msg)), true),
+    sub_atom(Msg, 0, _, _, 'floor1 (floor)'),
+    sub_atom(Msg, _, _, 0, 'friction, mass, restitution, shape').
+test(set_property_of_gripper, [setup(fresh(S)), cleanup(gone(S)), F == 3.0]) :-
+    add_to_scenario(S, pr2_robot),
+    scenario_set_property(S, pr2_gripper, max_force, 3),
+    prop(S, pr2_gripper, max_force, F).
 test(set_property_of_part, [setup(fresh(S)), cleanup(gone(S)), F == 0.9]) :-
     add_to_scenario(S, kitchen_env),
     scenario_set_property(S, table1, friction, 0.9),

@@ -6,7 +6,11 @@ Tolerance rules for the knowledge base's dicts:
 
 * Parts of an entity (``parts``) are flattened into the scenario; their poses are in the world.
 * A missing ``pose`` is the identity pose; a missing ``properties`` is empty.
-* Properties not listed in :data:`PROPERTIES` for a class are ignored (e.g. ``shape``, colour).
+* Every property acts on the simulation or is refused: a key that is neither in
+  :data:`PROPERTIES` nor in :data:`FIXED` for the entity's class is an error naming the
+  entity, the key and the accepted keys (:func:`accepted_properties`). :data:`FIXED` keys
+  describe what the builder makes of a class (``shape``, a static body's ``mass`` 0, the
+  robot's ``model``); another value than the one given there is an error.
 * Listed properties with a default may be left out; those without one are required.
 * Older keys of :data:`ALIASES` (``diameter``, ``count``) stand in for the knowledge base's
   (``radius``, ``particle_count``) when those are missing.
@@ -28,9 +32,11 @@ __all__ = [
     'ALIASES',
     'CLASSES',
     'Entity',
+    'FIXED',
     'PROPERTIES',
     'Pose',
     'Scenario',
+    'accepted_properties',
     'parse_scenario',
 ]
 
@@ -41,7 +47,9 @@ _POINTS, _PAIRS = 'points', 'pairs'   # lists of [x, y, z] / of [parent, child] 
 # class -> property -> (default or REQUIRED, range). Defaults are documented values of the
 # builder, used only when the knowledge base leaves a property out.
 PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
-    'environment': {},
+    'environment': {
+        'gravity': (None, _NONNEGATIVE),     # m/s^2 along -z; default: config/physics.yaml
+    },
     'floor': {
         'friction': (0.8, _NONNEGATIVE),
         'restitution': (0.0, _FRACTION),
@@ -72,6 +80,8 @@ PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
         'mass': (REQUIRED, _POSITIVE),
         'friction': (0.3, _NONNEGATIVE),
         'restitution': (0.05, _FRACTION),
+        'rolling_friction': (0.0, _NONNEGATIVE),
+        'spinning_friction': (0.0, _NONNEGATIVE),
         'breaking_force': (None, _POSITIVE),  # None: the shell does not break
     },
     # An open container: a bottom disc and a wall, ``radius`` and ``height`` outside.
@@ -111,6 +121,8 @@ PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
         'size_x': (REQUIRED, _POSITIVE),
         'size_y': (REQUIRED, _POSITIVE),
         'size_z': (REQUIRED, _POSITIVE),
+        'handle_length': (0.0, _NONNEGATIVE),    # along the blade's -x from its back edge
+        'handle_diameter': (0.02, _POSITIVE),
         'mass': (REQUIRED, _POSITIVE),
         'friction': (0.4, _NONNEGATIVE),
         'restitution': (0.1, _FRACTION),
@@ -137,7 +149,27 @@ ALIASES: dict[str, dict[str, tuple[str, float]]] = {
     'pancake': {'diameter': ('radius', 0.5), 'height': ('thickness', 1.0)},
     'particle_fluid': {'count': ('particle_count', 1.0)},
 }
+# Keys that say what the builder makes of a class, with the one value it accepts.
+FIXED: dict[str, dict[str, Any]] = {
+    'environment': {},
+    'floor': {'shape': 'plane', 'mass': 0.0},
+    'table': {'shape': 'box', 'mass': 0.0},
+    'robot': {'shape': 'none', 'model': 'pr2'},
+    'gripper': {'shape': 'urdf'},
+    'egg': {'shape': 'ellipsoid'},
+    'cup': {'shape': 'cup'},
+    'pancake_maker': {'shape': 'cylinder'},
+    'pancake': {'shape': 'disc'},
+    'spatula': {'shape': 'box'},
+    'particle_fluid': {'shape': 'sphere'},
+}
 CLASSES = frozenset(PROPERTIES)
+
+
+def accepted_properties(cls: str) -> list[str]:
+    """The property keys the simulator honours for class ``cls`` (sorted; aliases left
+    out); [] for an unknown class."""
+    return sorted({*PROPERTIES.get(cls, {}), *FIXED.get(cls, {})})
 
 
 @dataclass(frozen=True)
@@ -233,9 +265,19 @@ def _vector(name: str, key: str, value: Any) -> tuple[float, float, float]:
 def _properties(name: str, cls: str, given: Mapping[str, Any]) -> dict[str, Any]:
     values: dict[str, Any] = {}
     given = dict(given)
-    for old, (key, factor) in ALIASES.get(cls, {}).items():
+    aliases = ALIASES.get(cls, {})
+    for old, (key, factor) in aliases.items():
         if key not in given and old in given:
             given[key] = given[old] * factor if _is_number(given[old]) else given[old]
+    accepted = accepted_properties(cls)
+    for key in sorted(set(given) - set(accepted) - set(aliases)):
+        _fail(f'{name}: {cls} has no property {key!r} that the simulator honours '
+              f'(accepted: {", ".join(accepted)})')
+    for key, fixed in FIXED[cls].items():
+        if key in given and given[key] != fixed and not (
+                _is_number(given[key]) and _is_number(fixed) and given[key] == fixed):
+            _fail(f'{name}: {cls} property {key!r} must be {fixed!r} (the simulator builds '
+                  f'a {cls} as that), got {given[key]!r}')
     for key, (default, kind) in PROPERTIES[cls].items():
         value = given.get(key, default)
         if value is REQUIRED:

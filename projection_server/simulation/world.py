@@ -6,7 +6,8 @@ from an asset file; the engine's own settings come from ``config/physics.yaml``.
 
 How each class becomes bodies (poses are world poses of the object's centre unless said):
 
-* ``environment``: a container; its parts are built in its place.
+* ``environment``: a container; its parts are built in its place. Its ``gravity`` (m/s^2,
+  along -z) is the world's; without it, ``config/physics.yaml``'s gravity holds.
 * ``floor``: a static plane at the pose's z.
 * ``table``: a static slab ``size_x`` x ``size_y`` x ``size_z`` whose top is at ``height``
   (default: the pose's z), centred at the pose's x, y, turned by its yaw. Legs are not built.
@@ -17,7 +18,9 @@ How each class becomes bodies (poses are world poses of the object's centre unle
 * ``cup``: an open container, a compound of a bottom disc (``wall_thickness`` thick) and
   :data:`CUP_SEGMENTS` wall boxes on a circle, ``radius`` and ``height`` outside; its inside
   is registered in :attr:`Physics.containers`.
-* ``pancake_maker``: a flat disc (``radius``, ``height``); ``spatula``: a box (blade only).
+* ``pancake_maker``: a flat disc (``radius``, ``height``); ``spatula``: a box blade with a
+  cylindrical handle (``handle_length``, ``handle_diameter``) along the blade's -x from its
+  back edge, one rigid body.
   Bodies with ``mass`` 0 are static.
 * ``pancake``: a deformable body of jointed segments
   (:func:`projection_server.simulation.pancake.build_pancake`).
@@ -165,7 +168,10 @@ def _surface(client: Any, body_id: int, props: dict[str, Any]) -> None:
 
 
 def _build_environment(physics: Physics, entity: Entity) -> None:
-    """Nothing of its own: its parts are entities of the scenario."""
+    """The world's gravity; its parts are entities of the scenario."""
+    gravity = entity.properties.get('gravity')
+    if gravity is not None:
+        physics.client.setGravity(0.0, 0.0, -gravity)
 
 
 def _build_floor(physics: Physics, entity: Entity) -> None:
@@ -284,6 +290,8 @@ def _build_egg(physics: Physics, entity: Entity) -> None:
     body = _ellipsoid_body(physics, semi_axes, p['mass'], entity.pose.xyz,
                            _orientation(c, entity))
     _surface(c, body, p)
+    c.changeDynamics(body, -1, rollingFriction=p['rolling_friction'],
+                     spinningFriction=p['spinning_friction'])
     _lift_clear(physics, body)
     physics.add_body(Body(entity.name, entity.cls, body, False,
                           Shape('sphere', tuple(2 * s for s in semi_axes), EGG_COLOR)))
@@ -383,9 +391,26 @@ def _build_cup(physics: Physics, entity: Entity) -> None:
 
 
 def _build_spatula(physics: Physics, entity: Entity) -> None:
-    p = entity.properties
-    _primitive(physics, entity, 'box', (p['size_x'], p['size_y'], p['size_z']),
-               (0.5, 0.5, 0.55, 1.0))
+    """Blade and handle in one body, its origin at the blade's centre."""
+    c, p = physics.client, entity.properties
+    blade = (p['size_x'], p['size_y'], p['size_z'])
+    length, radius = p['handle_length'], p['handle_diameter'] / 2
+    color = (0.5, 0.5, 0.55, 1.0)
+    if length <= 0.0:
+        _primitive(physics, entity, 'box', blade, color)
+        return
+    along_x = c.getQuaternionFromEuler((0.0, math.pi / 2, 0.0))   # a cylinder's axis is z
+    centre = (-blade[0] / 2 - length / 2, 0.0, 0.0)
+    shape = c.createCollisionShapeArray(
+        [c.GEOM_BOX, c.GEOM_CYLINDER], radii=[0.0, radius],
+        halfExtents=[[s / 2 for s in blade], [0.0, 0.0, 0.0]], lengths=[0.0, length],
+        collisionFramePositions=[[0.0, 0.0, 0.0], list(centre)],
+        collisionFrameOrientations=[[0.0, 0.0, 0.0, 1.0], list(along_x)])
+    body = c.createMultiBody(p['mass'], shape, -1, entity.pose.xyz, _orientation(c, entity))
+    _surface(c, body, p)
+    handle = Shape('cylinder', (2 * radius, 2 * radius, length), color, tuple(along_x))
+    physics.add_body(Body(entity.name, entity.cls, body, p['mass'] == 0.0,
+                          Shape('box', blade, color), link_shapes={-1: [(handle, centre)]}))
 
 
 def _build_particle_fluid(physics: Physics, entity: Entity) -> None:

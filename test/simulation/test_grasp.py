@@ -65,6 +65,37 @@ def test_a_heavier_egg_needs_a_firmer_grip(project, make_scenario):
     assert events(project(make_scenario(mass=0.15), force=3.0), 'slip')
 
 
+def with_gripper(scenario, **properties):
+    """The scenario with the robot's gripper described (KB values, changed by ``properties``)."""
+    robot = scenario['entities'][1]
+    robot['parts'] = [{'name': 'pr2_gripper', 'class': 'gripper', 'properties': {
+        'urdf': 'pr2_gripper.urdf', 'friction': 1.0, 'restitution': 0.0,
+        'max_force': 80.0, 'max_opening': 0.09, **properties}}]
+    return scenario
+
+
+def test_a_weak_grip_holds_the_egg_under_weaker_gravity(project, make_scenario):
+    scenario = make_scenario()
+    scenario['entities'][0]['properties']['gravity'] = 3.0
+    assert events(project(make_scenario(), force=1.0), 'slip')
+    held = project(scenario, force=1.0)
+    assert not events(held, 'slip') and events(held, 'lift')
+
+
+def test_the_grippers_max_force_caps_the_grip(project, make_scenario):
+    assert events(project(with_gripper(make_scenario()), force=11.0), 'break')
+    capped = project(with_gripper(make_scenario(), max_force=4.0), force=11.0)
+    assert not events(capped, 'break') and events(capped, 'lift')
+    assert quantity(capped, 'max_load') == pytest.approx(4.0, rel=0.05)
+
+
+def test_fingers_that_cannot_open_wider_than_the_egg_do_not_grasp_it(project, make_scenario):
+    assert events(project(with_gripper(make_scenario()), force=5.0), 'lift')
+    narrow = project(with_gripper(make_scenario(), max_opening=0.03), force=5.0)
+    # The fingers run into the egg instead of closing around it.
+    assert not events(narrow, 'lift') and quantity(narrow, 'lift_height') < 0.01
+
+
 def test_the_same_projection_gives_the_same_timeline_and_bag(make_scenario, tmp_path):
     job = Job.checked(make_scenario(), 'grasp_object', {'force': 7.0, 'position': 0.02})
     from projection_server.simulation import load_settings

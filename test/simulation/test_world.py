@@ -64,3 +64,60 @@ def test_an_unknown_gripper_is_a_bad_scenario(client, make_scenario):
     with pytest.raises(ProjectionError) as info:
         build_world(client, parse_scenario(scenario), load_settings())
     assert info.value.kind == 'invalid_scenario'
+
+
+def test_the_environments_gravity_is_the_worlds(client, make_scenario):
+    scenario = make_scenario()
+    scenario['entities'][0]['properties']['gravity'] = 3.0
+    physics = build_world(client, parse_scenario(scenario), load_settings())
+    for _ in range(120):
+        physics.step()
+    assert physics.contact_force('egg1', 'table1') == pytest.approx(0.06 * 3.0, rel=0.05)
+
+
+def rolled_distance(client, make_scenario, **egg):
+    """How far an egg rolls on the table in 1 s, set rolling about its long axis."""
+    physics = build_world(client, parse_scenario(make_scenario(**egg)), load_settings())
+    body = physics.body('egg1').body_id
+    for _ in range(60):
+        physics.step()
+    start = client.getBasePositionAndOrientation(body)[0]
+    client.resetBaseVelocity(body, (0.0, 0.3, 0.0), (-0.3 / 0.022, 0.0, 0.0))
+    for _ in range(240):
+        physics.step()
+    end = client.getBasePositionAndOrientation(body)[0]
+    return abs(end[1] - start[1]), client.getDynamicsInfo(body, -1)
+
+
+def test_rolling_friction_slows_a_rolling_egg(client, make_scenario):
+    free, info = rolled_distance(client, make_scenario, rolling_friction=0.0)
+    braked, info = rolled_distance(client, make_scenario, rolling_friction=0.004)
+    assert info[6] == pytest.approx(0.004)
+    assert free > 0.15 and braked < 0.5 * free
+
+
+def spun_angle(client, make_scenario, **egg):
+    """The angle [rad] an egg lying on the table turns in 0.5 s, spun about the vertical."""
+    physics = build_world(client, parse_scenario(make_scenario(**egg)), load_settings())
+    body = physics.body('egg1').body_id
+    for _ in range(60):
+        physics.step()
+    client.resetBaseVelocity(body, (0.0, 0.0, 0.0), (0.0, 0.0, 6.0))
+    yaw = 0.0
+    for _ in range(120):
+        physics.step()
+        yaw += client.getBaseVelocity(body)[1][2] / 240
+    return yaw, client.getDynamicsInfo(body, -1)
+
+
+def test_spinning_friction_stops_a_spinning_egg(client, make_scenario):
+    free, _ = spun_angle(client, make_scenario, spinning_friction=0.0)
+    braked, info = spun_angle(client, make_scenario, spinning_friction=0.01)
+    assert info[7] == pytest.approx(0.01)
+    assert free > 1.5 and braked < 0.5 * free
+
+
+def test_an_egg_given_on_the_table_starts_clear_of_it(client, make_scenario):
+    physics = build_world(client, parse_scenario(make_scenario()), load_settings())
+    egg, table = physics.body('egg1').body_id, physics.body('table1').body_id
+    assert min(p[8] for p in client.getClosestPoints(egg, table, 0.01)) >= 0.0
