@@ -469,7 +469,8 @@ quantity(Q, V) :-
 %
 %   Type is the type of the event or fluent Term: the name of Term, or its
 %   gerund as the paper writes event types (`dropping` for drop(egg1)).
-%   The gerunds known are: dropping-drop, slipping-slip, breaking-break,
+%   The gerunds known are: dropping-drop, slipping-slip, shifting-shift,
+%   breaking-break,
 %   grasping-grasp, lifting-lift, spilling-spill, flipping-flip,
 %   pouring-pour, turning-turn, falling-fall.  Add others with clauses of
 %   the multifile timeline:type_alias(Gerund, Name).  If Term is
@@ -496,6 +497,7 @@ type_name(Name, Alias) :-
 
 type_alias(dropping, drop).
 type_alias(slipping, slip).
+type_alias(shifting, shift).
 type_alias(breaking, break).
 type_alias(grasping, grasp).
 type_alias(lifting, lift).

@@ -121,8 +121,6 @@ PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
         'size_x': (REQUIRED, _POSITIVE),
         'size_y': (REQUIRED, _POSITIVE),
         'size_z': (REQUIRED, _POSITIVE),
-        'handle_length': (0.0, _NONNEGATIVE),    # along the blade's -x from its back edge
-        'handle_diameter': (0.02, _POSITIVE),
         'mass': (REQUIRED, _POSITIVE),
         'friction': (0.4, _NONNEGATIVE),
         'restitution': (0.1, _FRACTION),

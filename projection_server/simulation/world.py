@@ -18,9 +18,8 @@ How each class becomes bodies (poses are world poses of the object's centre unle
 * ``cup``: an open container, a compound of a bottom disc (``wall_thickness`` thick) and
   :data:`CUP_SEGMENTS` wall boxes on a circle, ``radius`` and ``height`` outside; its inside
   is registered in :attr:`Physics.containers`.
-* ``pancake_maker``: a flat disc (``radius``, ``height``); ``spatula``: a box blade with a
-  cylindrical handle (``handle_length``, ``handle_diameter``) along the blade's -x from its
-  back edge, one rigid body.
+* ``pancake_maker``: a flat disc (``radius``, ``height``); ``spatula``: a box (the blade;
+  the turning program moves it as a hand would, so no handle or arm is simulated).
   Bodies with ``mass`` 0 are static.
 * ``pancake``: a deformable body of jointed segments
   (:func:`projection_server.simulation.pancake.build_pancake`).
@@ -391,26 +390,9 @@ def _build_cup(physics: Physics, entity: Entity) -> None:
 
 
 def _build_spatula(physics: Physics, entity: Entity) -> None:
-    """Blade and handle in one body, its origin at the blade's centre."""
-    c, p = physics.client, entity.properties
-    blade = (p['size_x'], p['size_y'], p['size_z'])
-    length, radius = p['handle_length'], p['handle_diameter'] / 2
-    color = (0.5, 0.5, 0.55, 1.0)
-    if length <= 0.0:
-        _primitive(physics, entity, 'box', blade, color)
-        return
-    along_x = c.getQuaternionFromEuler((0.0, math.pi / 2, 0.0))   # a cylinder's axis is z
-    centre = (-blade[0] / 2 - length / 2, 0.0, 0.0)
-    shape = c.createCollisionShapeArray(
-        [c.GEOM_BOX, c.GEOM_CYLINDER], radii=[0.0, radius],
-        halfExtents=[[s / 2 for s in blade], [0.0, 0.0, 0.0]], lengths=[0.0, length],
-        collisionFramePositions=[[0.0, 0.0, 0.0], list(centre)],
-        collisionFrameOrientations=[[0.0, 0.0, 0.0, 1.0], list(along_x)])
-    body = c.createMultiBody(p['mass'], shape, -1, entity.pose.xyz, _orientation(c, entity))
-    _surface(c, body, p)
-    handle = Shape('cylinder', (2 * radius, 2 * radius, length), color, tuple(along_x))
-    physics.add_body(Body(entity.name, entity.cls, body, p['mass'] == 0.0,
-                          Shape('box', blade, color), link_shapes={-1: [(handle, centre)]}))
+    p = entity.properties
+    _primitive(physics, entity, 'box', (p['size_x'], p['size_y'], p['size_z']),
+               (0.5, 0.5, 0.55, 1.0))
 
 
 def _build_particle_fluid(physics: Physics, entity: Entity) -> None:

@@ -23,10 +23,16 @@ Events (``[name, args, start, end]``, points have start = end):
 * ``grasp(O)``: an ``in_gripper(O)`` interval begins.
 * ``release(O)``: it ends while its gripper's command is ``open``.
 * ``lift(O)``: a ``supported_by(O, S)`` interval ends while O is in the gripper.
-* ``slip(O)``: while O is held and not broken, it moves by more than ``slip_distance`` or
-  turns by more than ``slip_angle`` relative to the gripper (measured from ``grasp_settle``
-  after the grasp; the event spans from the last sample within a fifth of the threshold to
-  the sample that crosses it); or it leaves the gripper while the command is not ``open``.
+* ``slip(O)``: O is lost from the grasp: it leaves the gripper while the command is not
+  ``open`` (a point at the grasp's end), or it is held to the end of the grasp sunk more
+  than ``slip_distance`` below where the gripper carried it (it slides out between the
+  fingers and ends below the lift's height; the event spans from the last sample sunk less
+  than a fifth of that to the sample that exceeds it). Motion is measured relative to the
+  gripper's fingers from ``grasp_settle`` after the grasp, while O is not broken.
+* ``shift(O)``: O moves within the grasp and is not lost: while held and not broken it
+  moves by more than ``slip_distance`` or turns by more than ``slip_angle`` relative to the
+  fingers (from the last sample within a fifth of the threshold to the sample that crosses
+  it), and no ``slip(O)`` ends that grasp.
 * ``break(O)``: ``broken(O)`` begins.
 * ``flip(P)``: ``upside_down(P)`` begins.
 * ``drop(O)``: O touches nothing for at least ``drop_min_duration`` and falls meanwhile;
@@ -297,7 +303,7 @@ class _Timeline:
             for start, end in intervals:
                 if name == 'in_gripper':
                     events.append(['grasp', [obj], start, start])
-                    events.extend(self._slip(obj, start, end))
+                    events.extend(self._grip(obj, start, end))
                     if end < self.end and self._command_after(end) == 'open':
                         events.append(['release', [obj], end, end])
                 elif name == 'supported_by':
@@ -310,9 +316,13 @@ class _Timeline:
         events.extend(self._drops())
         return _sorted_events(events)
 
-    def _slip(self, obj: str, start: float, end: float) -> list[list[Any]]:
+    def _grip(self, obj: str, start: float, end: float) -> list[list[Any]]:
+        """The ``shift`` or ``slip`` of ``obj`` in its grasp from ``start`` to ``end``."""
+        limit = self.settings.slip_distance
         reference = None
-        onset = start
+        onset = sink_onset = start
+        shift = sunk = None
+        sink = 0.0
         for sample in self.samples:
             if sample.t < start or sample.t > end or self._broken_at(obj, sample.t):
                 continue
@@ -322,22 +332,31 @@ class _Timeline:
             if reference is None:
                 if sample.t >= min(start + self.settings.grasp_settle, end):
                     reference = relative
-                    onset = sample.t
+                    onset = sink_onset = sample.t
                 continue
-            distance = float(np.linalg.norm(relative[0] - reference[0]))
+            moved = relative[0] - reference[0]
             cos_angle = (np.trace(reference[1].T @ relative[1]) - 1.0) / 2.0
             angle = math.acos(min(1.0, max(-1.0, cos_angle)))
-            # Relative to the thresholds: 1 means slipped; below 1/5 the grip still holds.
-            moved = max(distance / self.settings.slip_distance, angle / self.settings.slip_angle)
-            if moved > 1.0:
-                return [['slip', [obj], onset, sample.t]]
-            if moved <= 0.2:
-                onset = sample.t
+            # Relative to the thresholds: 1 means moved; below 1/5 the grip still holds.
+            ratio = max(float(np.linalg.norm(moved)) / limit, angle / self.settings.slip_angle)
+            if shift is None:
+                if ratio > 1.0:
+                    shift = ['shift', [obj], onset, sample.t]
+                elif ratio <= 0.2:
+                    onset = sample.t
+            sink = -float((relative[2] @ moved)[2])   # downwards in the world
+            if sunk is None:
+                if sink > limit:
+                    sunk = (sink_onset, sample.t)
+                elif sink <= 0.2 * limit:
+                    sink_onset = sample.t
         after = self._next_time(end)
         if after is not None and self._command_after(end) != 'open' \
                 and not self._broken_at(obj, after):
             return [['slip', [obj], end, end]]
-        return []
+        if sunk is not None and sink > limit:
+            return [['slip', [obj], *sunk]]
+        return [shift] if shift is not None else []
 
     def _drops(self) -> list[list[Any]]:
         events = []
@@ -389,9 +408,10 @@ class _Timeline:
                 return float(sample.poses[obj][0][2])
         return math.nan
 
-    def _relative_pose(self, obj: str,
-                       sample: _Sample) -> tuple[np.ndarray, np.ndarray] | None:
-        """Pose of ``obj`` in the frame between the fingers of the gripper holding it."""
+    def _relative_pose(self, obj: str, sample: _Sample
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Pose of ``obj`` in the frame between the fingers of the gripper holding it, and
+        that frame's rotation in the world."""
         for name, gripper in sample.grippers.items():
             frames = [sample.poses.get(f'{name}/{link}') for link in gripper.finger_links]
             if obj not in sample.poses or not frames or any(f is None for f in frames):
@@ -399,7 +419,7 @@ class _Timeline:
             origin = sum(f[0] for f in frames) / len(frames)
             rot = frames[0][1]
             position, orientation = sample.poses[obj]
-            return rot.T @ (position - origin), rot.T @ orientation
+            return rot.T @ (position - origin), rot.T @ orientation, rot
         return None
 
 

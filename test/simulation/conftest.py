@@ -5,7 +5,6 @@ from __future__ import annotations
 import copy
 
 import pytest
-import yaml
 
 from projection_server.simulation import load_settings
 from projection_server.workers.local import WorkerPool
@@ -55,15 +54,11 @@ def pool(tmp_path_factory):
 
 
 @pytest.fixture
-def refined_settings(tmp_path):
-    """``refined_settings(factor)``: config/physics.yaml with a ``factor`` times finer time
-    step (control and logging at the same rates), read through the settings loader."""
-    def refine(factor):
-        data = load_settings().to_dict()
-        data['physics']['rate_hz'] *= factor
-        for key in ('steps_per_control', 'steps_per_log'):
-            data['control'][key] *= factor
-        path = tmp_path / f'physics_x{factor}.yaml'
-        path.write_text(yaml.safe_dump(data))
-        return load_settings(path)
+def refined_settings():
+    """``refined_settings(factor[, program])``: the settings of a projection of ``program``
+    whose query asks for a ``factor`` times finer time step (make_projection/5's physics
+    option; control and logging keep their rates)."""
+    def refine(factor, program='grasp_object'):
+        settings = load_settings()
+        return settings.for_projection(program, {'rate_hz': settings.physics.rate_hz * factor})
     return refine

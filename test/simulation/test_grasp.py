@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from projection_server.simulation import Job
@@ -144,3 +145,51 @@ def test_the_timeline_has_the_contract_shape(project, make_scenario):
     assert {('contact', ('egg1', 'table1')), ('supported_by', ('egg1', 'table1')),
             ('on', ('egg1', 'table1')), ('in_gripper', ('egg1',)),
             ('contact', ('egg1', 'pr2_robot'))} <= fluents
+
+
+def held_egg_timeline(offset, release_at=None):
+    """The timeline of an egg held between two fingers that moves by ``offset`` (x, y, z in
+    the world, the fingers' frame) between 0.5 s and 1 s, and leaves the fingers at
+    ``release_at`` [s] if given, while the gripper stays closed."""
+    from types import SimpleNamespace as Msg
+
+    from projection_server.timeline.translate import _Sample, _Timeline
+
+    eye = np.eye(3)
+    samples = []
+    for i in range(120):
+        t = i / 60
+        s = min(max((t - 0.5) / 0.5, 0.0), 1.0)
+        egg = np.array([0.0, 0.0, 1.0]) + s * np.asarray(offset)
+        held = release_at is None or t < release_at
+        contacts = [Msg(body_a='egg1', link_a='', body_b='g', link_b=link, normal_force=5.0,
+                        normal=Msg(z=0.0)) for link in ('l', 'r')] if held else []
+        samples.append(_Sample(
+            t, poses={'egg1': (egg, eye), 'g/l': (np.array([0.0, 0.02, 1.0]), eye),
+                      'g/r': (np.array([0.0, -0.02, 1.0]), eye),
+                      'g': (np.array([0.0, 0.0, 1.1]), eye)},
+            moving={'egg1', 'g'}, contacts=contacts,
+            grippers={'g': Msg(finger_links=['l', 'r'], command='close')}))
+    from projection_server.simulation import load_settings
+
+    timeline = _Timeline(samples, load_settings().timeline)
+    return [e for e in timeline.events() if e[0] in ('slip', 'shift')]
+
+
+def test_an_egg_that_moves_within_the_grasp_shifts():
+    (shift,) = held_egg_timeline((0.008, 0.0, 0.0))
+    assert shift[0] == 'shift' and 0.5 <= shift[2] < shift[3] <= 1.0
+
+
+def test_an_egg_that_sinks_between_the_fingers_and_stays_sunk_slips():
+    (slip,) = held_egg_timeline((0.0, 0.0, -0.008))
+    assert slip[0] == 'slip' and 0.5 <= slip[2] < slip[3] <= 1.0
+
+
+def test_an_egg_that_leaves_the_closed_fingers_slips():
+    (slip,) = held_egg_timeline((0.0, 0.0, 0.0), release_at=1.5)
+    assert slip[0] == 'slip' and slip[2] == slip[3] == pytest.approx(1.5 - 1 / 60)
+
+
+def test_a_small_sag_is_neither_slip_nor_shift():
+    assert held_egg_timeline((0.0, 0.0, -0.003)) == []

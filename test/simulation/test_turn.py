@@ -93,9 +93,7 @@ TURNING = {'name': 'turning',
                                         'restitution': 0.05,
                                         'size_x': 0.1,
                                         'size_y': 0.08,
-                                        'size_z': 0.002,
-                                        'handle_length': 0.25,
-                                        'handle_diameter': 0.02},
+                                        'size_z': 0.002},
                          'pose': {'xyz': [-0.13, 0.0, 0.751], 'rpy': [0.0, 0.0, 0.0]}}]}
 
 
