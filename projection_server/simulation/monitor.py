@@ -1,5 +1,12 @@
 """Monitoring: turns the state of a :class:`Physics` into bag messages (topics: ``bags``).
 
+Contacts are not sampled but aggregated: every physics step's contacts (of every body but a
+fluid's particles) are summed per link pair, and a sample reports each pair that touched in
+any step since the last sample, with its impulse over the sample period as the normal force
+(the mean force), force-weighted position and normal, and mean friction. A short impact
+between two samples is reported, with a force that does not depend on the time step.
+Particle fluids' contacts are those of the sample's step.
+
 Particle fluids are not on ``/tf``: each monitoring step writes one ``MarkerArray`` on the
 markers topic with a ``SPHERE_LIST`` marker per fluid (namespace :data:`PARTICLES_NS`, text
 = the fluid's name, points = the particles' world positions).
@@ -12,13 +19,13 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from projection_server.bags import TOPICS
-from projection_server.simulation.physics import Shape
+from projection_server.simulation.physics import ContactSample, Shape
 
 if TYPE_CHECKING:
     from projection_server.bags import BagWriter
     from projection_server.simulation.physics import Body, Physics
 
-__all__ = ['Monitor', 'PARTICLES_NS', 'WORLD_FRAME']
+__all__ = ['ContactAggregator', 'Monitor', 'PARTICLES_NS', 'WORLD_FRAME']
 
 WORLD_FRAME = 'world'
 PARTICLES_NS = 'particles'
@@ -31,6 +38,8 @@ class Monitor:
     def __init__(self, physics: Physics, bag: BagWriter):
         self.physics = physics
         self.bag = bag
+        self.contacts = ContactAggregator(physics)
+        physics.step_hooks.append(self.contacts.add_step)
 
     def start(self, info: dict[str, str]) -> None:
         """t = 0: the projection's description, the static poses and the shapes."""
@@ -63,7 +72,7 @@ class Monitor:
             _MSG + 'Contact', body_a=c.body_a, link_a=c.link_a, body_b=c.body_b,
             link_b=c.link_b, position=self._point(c.position), normal=self._vector(c.normal),
             normal_force=c.normal_force, friction_force=self._vector(c.friction))
-            for c in physics.contacts()]
+            for c in self.contacts.take()]
         bag.write(TOPICS['contacts'], bag.new(_MSG + 'ContactArray', header=self._header(t),
                                               contacts=contacts), t)
         for gripper in physics.grippers.values():
@@ -153,6 +162,93 @@ class Monitor:
                        'geometry_msgs/msg/Transform', translation=self._vector(position),
                        rotation=new('geometry_msgs/msg/Quaternion', x=orientation[0],
                                     y=orientation[1], z=orientation[2], w=orientation[3])))
+
+
+class ContactAggregator:
+    """The contacts of every physics step since the last :meth:`take`, per link pair."""
+
+    def __init__(self, physics: Physics):
+        self.physics = physics
+        self._steps = 0
+        # key -> [sum f, sum f*x, y, z, sum f*n x, y, z, sum friction x, y, z, points,
+        #         sum x, y, z, sum n x, y, z]
+        self._sums: dict[tuple[str, str, str, str], list[float]] = {}
+
+    def add_step(self) -> None:
+        """Add the contacts of the step just made."""
+        physics = self.physics
+        self._steps += 1
+        fluids = physics.fluids
+        bodies = [b.body_id for b in physics.bodies.values()
+                  if not b.static and b.group is None]
+        queried = set(bodies)
+        name_of, link_name = physics.name_of, physics.link_name
+        sums = self._sums
+        for body in bodies:
+            a = name_of(body)
+            for point in physics.client.getContactPoints(bodyA=body):
+                other = point[2]
+                if other in queried and other < body:
+                    continue   # counted from the other body
+                b = name_of(other)
+                if b is None or b in fluids:
+                    continue
+                key_a = (a, link_name(body, point[3]))
+                key_b = (b, link_name(other, point[4]))
+                sign = 1.0 if key_a < key_b else -1.0
+                key = (*key_a, *key_b) if sign > 0 else (*key_b, *key_a)
+                f = point[9]
+                (xa, ya, za), (xb, yb, zb) = point[5], point[6]
+                x, y, z = (xa + xb) / 2, (ya + yb) / 2, (za + zb) / 2
+                nx, ny, nz = (sign * v for v in point[7])
+                f1, (d1x, d1y, d1z), f2, (d2x, d2y, d2z) = point[10:14]
+                row = sums.get(key)
+                if row is None:
+                    row = sums[key] = [0.0] * 17
+                row[0] += f
+                row[1] += f * x
+                row[2] += f * y
+                row[3] += f * z
+                row[4] += f * nx
+                row[5] += f * ny
+                row[6] += f * nz
+                row[7] += sign * (f1 * d1x + f2 * d2x)
+                row[8] += sign * (f1 * d1y + f2 * d2y)
+                row[9] += sign * (f1 * d1z + f2 * d2z)
+                row[10] += 1
+                row[11] += x
+                row[12] += y
+                row[13] += z
+                row[14] += nx
+                row[15] += ny
+                row[16] += nz
+
+    def take(self) -> list[ContactSample]:
+        """The aggregated contacts since the last call (and the fluids' of this step),
+        sorted by link pair; starts a new period."""
+        steps = max(1, self._steps)
+        out = []
+        for key, row in self._sums.items():
+            total = row[0]
+            if total > 0:
+                position = (row[1] / total, row[2] / total, row[3] / total)
+                normal = np.array(row[4:7])
+            else:
+                position = (row[11] / row[10], row[12] / row[10], row[13] / row[10])
+                normal = np.array(row[14:17])
+            norm = float(np.linalg.norm(normal))
+            out.append(ContactSample(
+                *key, position=position,
+                normal=tuple(normal / norm) if norm > 0 else (0.0, 0.0, 1.0),
+                normal_force=total / steps,
+                friction=(row[7] / steps, row[8] / steps, row[9] / steps)))
+        if self.physics.fluids:
+            fluids = self.physics.fluids
+            out += [c for c in self.physics.contacts()
+                    if c.body_a in fluids or c.body_b in fluids]
+        self._sums = {}
+        self._steps = 0
+        return sorted(out, key=lambda c: (c.body_a, c.link_a, c.body_b, c.link_b))
 
 
 def _link_frame(body: Body, link: int) -> str:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Any, Protocol, TYPE_CHECKING
+from typing import Any, Callable, Protocol, TYPE_CHECKING
 
 import numpy as np
 
@@ -236,6 +236,7 @@ class Physics:
         self.fluids: dict[str, Fluid] = {}
         self.containers: dict[str, Container] = {}
         self.shapes_changed = True   # markers must be (re)logged
+        self.step_hooks: list[Callable[[], None]] = []   # run after every step's models
         self._names: dict[int, str] = {}
 
     # --- registry -----------------------------------------------------------------------
@@ -290,11 +291,13 @@ class Physics:
         return self.step_count * 1_000_000_000 // self.settings.physics.rate_hz
 
     def step(self) -> None:
-        """One physics step, then every object model."""
+        """One physics step, then every object model and every step hook."""
         self.client.stepSimulation()
         self.step_count += 1
         for model in self.models:
             model.after_step(self)
+        for hook in self.step_hooks:
+            hook()
 
     # --- named queries -----------------------------------------------------------------
     def pose(self, name: str) -> tuple[Vec3, Quat]:
