@@ -19,7 +19,7 @@
           ]).
 :- use_module(library(semweb/rdf11)).
 :- use_module(library(semweb/turtle), []).     % the Turtle parser for rdf_load/2
-:- autoload(library(apply), [foldl/4, maplist/3]).
+:- autoload(library(apply), [foldl/4, maplist/3, include/3]).
 :- autoload(library(error),
             [ must_be/2, domain_error/2, existence_error/2, type_error/2 ]).
 :- autoload(library(lists), [member/2, reverse/2, list_to_set/2]).
@@ -440,18 +440,28 @@ ancestors(IRI, Ancestors) :-
 %
 %   Properties are the default physical properties of entities of
 %   Class: the values of the prototypes (`kitchen:prototype`) of Class
-%   and its superclasses, a nearer class overriding a farther one.
+%   and its superclasses, a nearer class overriding a farther one, of the
+%   properties that apply to Class (kb_class_properties/2).
 %
 %   @error existence_error(class, Class) if Class is not a KB class.
 
 kb_class_defaults(Class, Properties) :-
     known_class(Class, IRI),
     prototypes_far_first(IRI, Protos),
-    foldl(add_prototype_properties, Protos, _{}, Properties).
+    foldl(add_prototype_properties, Protos, _{}, Properties0),
+    kb_class_properties(Class, Keys),
+    dict_pairs(Properties0, Tag, Pairs0),
+    include(applicable_pair(Keys), Pairs0, Pairs),
+    dict_pairs(Properties, Tag, Pairs).
 
 add_prototype_properties(Proto, D0, D) :-
     own_properties(Proto, P),
     D = D0.put(P).
+
+% A superclass's prototype may give values that do not apply to a subclass
+% (a physical object's friction, not a robot's).
+applicable_pair(Keys, Key-_) :-
+    memberchk(Key, Keys).
 
 prototypes_far_first(IRI, Protos) :-
     ancestors(IRI, Near),

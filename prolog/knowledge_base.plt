@@ -188,9 +188,12 @@ test(class_defaults_pancake) :-
     kb_class_defaults(pancake, D),
     D.radius == 0.07, D.thickness == 0.008, D.mass == 0.06,
     D.model == "rings", D.ring_count == 3.
-test(class_defaults_inherited, F == 0.5) :-
-    kb_class_defaults(robot, D),
-    F = D.friction.
+test(class_defaults_inherited, S == "sphere") :-
+    kb_class_defaults(pancake_mix, D),
+    S = D.shape.
+test(class_defaults_only_applicable, Keys == [model, shape]) :-
+    kb_class_defaults(robot, D),            % no physical object's friction
+    dict_pairs(D, _, Pairs), pairs_keys(Pairs, Keys).
 test(class_defaults_nearer_class_wins, F == 0.35) :-
     kb_class_defaults(egg, D),
     F = D.friction.

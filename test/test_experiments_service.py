@@ -49,6 +49,42 @@ def test_a_counterfactual_egg_changes_the_outcome_at_the_same_force(
     assert {s['Which']: s['O'] for s in sols} == {'kb': kb_outcome, 'variant': outcome}
 
 
+@pytest.mark.parametrize('breaking_force', [3.0, 5.0])
+def test_an_egg_that_breaks_as_it_is_dropped_is_broken_after_the_drop(call, breaking_force):
+    # Section II's query. A weak shell breaks from the pads' rims as the heavy egg slides out
+    # of the grip (3 N) or when it lands (5 N); either way broken(egg1) holds after the drop.
+    sols = ask(call, f'''
+        create_scenario(S),
+        add_to_scenario(S, [kitchen_env, pr2_robot, egg1]),
+        scenario_set_property(S, egg1, mass, 0.1),
+        scenario_set_property(S, egg1, breaking_force, {breaking_force}),
+        make_projection(S, grasp_object, [(_, force, [1.5])], TL),
+        with_timeline(TL, ( occurs(Evt, T1), typeOf(Evt, dropping), objOf(Evt, egg1),
+                            after(T2, T1), holds(F, T2), objOf(F, egg1) ))''')
+    fluents = {json.dumps(s['F'], sort_keys=True) for s in sols}
+    for name, args in (('broken', ['egg1']), ('on', ['egg1', 'table1'])):
+        assert json.dumps({'functor': name, 'args': args}, sort_keys=True) in fluents
+
+
+def test_the_grippers_limits_act_through_the_service(call):
+    sols = ask(call, f'''
+        copy_scenario(grasping, S), scenario_set_property(S, pr2_gripper, max_force, 4.0),
+        member(Sc-Which, [grasping-kb, S-capped]),
+        make_projection(Sc, grasp_object, [(_, force, [11]), (_, position, [0.0])], TL),
+        {OUTCOME}''')
+    assert {s['Which']: s['O'] for s in sols} == {'kb': 'break', 'capped': 'ok'}
+
+
+@pytest.mark.parametrize('entity, key', [('floor1', 'rolling_friction'), ('egg1', 'colour'),
+                                         ('kitchen_env', 'friction')])
+def test_a_property_the_simulator_does_not_build_from_is_refused(call, entity, key):
+    r = call(PrologQuery, 'query', Q(mode=Q.ONCE, query=f'''
+        copy_scenario(grasping, S), scenario_set_property(S, {entity}, {key}, 0.5)''',
+        timeout=TIMEOUT), timeout=TIMEOUT)
+    assert not r.ok and r.error_kind == 'domain_error'
+    assert key in r.message and entity in r.message and 'builds it from' in r.message
+
+
 def test_pouring_at_a_larger_angle_puts_more_on_the_pan_and_a_centred_pour_lands_on_it(call):
     sols = ask(call, '''
         make_projection(pouring, pour,

@@ -315,16 +315,26 @@ def _ellipsoid_body(physics: Physics, semi_axes: tuple[float, float, float], mas
 def _remains_factory(semi_axes: tuple[float, float, float],
                      props: dict[str, Any]) -> Callable[[Physics, str], None]:
     """How a broken egg is replaced: a flat, spilled body of the same mass that the gripper's
-    pads no longer hold, lying where the egg was."""
+    pads no longer hold, where the egg was (its bottom where the egg's lowest point was),
+    falling on if the egg broke in the air, at rest if it broke against something."""
     def replace(physics: Physics, name: str) -> None:
         c = physics.client
         old = physics.body(name).body_id
         position, orientation = c.getBasePositionAndOrientation(old)
+        velocity = (c.getBaseVelocity(old)[0] if not c.getContactPoints(bodyA=old)
+                    else (0.0, 0.0, 0.0))
+        bottom = c.getAABB(old)[0][2]
         yaw = c.getEulerFromQuaternion(orientation)[2]
         flat = (semi_axes[0], semi_axes[1], semi_axes[2] * REMAINS_FLATNESS)
-        body = _ellipsoid_body(physics, flat, props['mass'], position,
-                               c.getQuaternionFromEuler((0.0, 0.0, yaw)))
+        flat_orientation = c.getQuaternionFromEuler((0.0, 0.0, yaw))
+        body = _ellipsoid_body(physics, flat, props['mass'],
+                               (position[0], position[1], bottom + flat[2]), flat_orientation)
+        lowest = c.getAABB(body)[0][2]   # the same collision margin as the egg's
+        c.resetBasePositionAndOrientation(
+            body, (position[0], position[1], bottom + flat[2] + bottom - lowest),
+            flat_orientation)
         _surface(c, body, props)
+        c.resetBaseVelocity(body, velocity, (0.0, 0.0, 0.0))
         for gripper in physics.grippers.values():
             for link in range(-1, c.getNumJoints(gripper.body_id)):
                 c.setCollisionFilterPair(body, gripper.body_id, -1, link, 0)

@@ -13,7 +13,9 @@ Fluents (arguments are entity names):
   is within ``support_max_angle`` of straight up.
 * ``in_gripper(O)``: O touches every finger link of a gripper.
 * ``on(O, S)``: O is supported by S and not in a gripper (it rests on S).
-* ``broken(O)``: O's object model reports it broken.
+* ``broken(O)``: O's object model reports it broken. An interval of a state fluent of O
+  (``broken``, ``upside_down``) that spans the end of a ``drop(O)`` is reported as two:
+  up to the drop's end, and from the next sample (a state O lands in holds after the drop).
 * ``upside_down(P)``: the plane fitted to the logged segment frames of deformable body P
   (``P`` and its links ``P/...``; a pancake) has its upper side's normal pointing down (see
   :mod:`projection_server.timeline.turning`).
@@ -234,6 +236,12 @@ def _matrix(q: tuple[float, float, float, float]) -> np.ndarray:
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
+# Fluents of an object's state (not of its relations): an interval of one that spans the end
+# of a drop of its object is reported as two, before and after the drop, so that a state
+# the object is in when it lands holds after the drop (what section II's query asks).
+_STATES = frozenset({'broken', 'upside_down'})
+
+
 class _Timeline:
     """Fluents, events and quantities of a list of samples."""
 
@@ -287,10 +295,31 @@ class _Timeline:
                     self._booleans[('upside_down', (body,))][i] = True
 
     def fluents(self) -> list[list[Any]]:
-        rows = [[name, list(args), start, end]
-                for (name, args), intervals in self._intervals.items()
-                for start, end in intervals]
+        rows = []
+        drop_ends: dict[str, list[float]] | None = None
+        for (name, args), intervals in self._intervals.items():
+            for start, end in intervals:
+                if name not in _STATES:
+                    rows.append([name, list(args), start, end])
+                    continue
+                if drop_ends is None:
+                    drop_ends = defaultdict(list)
+                    for _, (obj,), _, drop_end in self._drops():
+                        drop_ends[obj].append(drop_end)
+                for piece in self._split(start, end, drop_ends[args[0]]):
+                    rows.append([name, list(args), *piece])
         return sorted(rows, key=lambda r: (r[2], r[0], r[1]))
+
+    def _split(self, start: float, end: float, cuts: list[float]) -> list[Interval]:
+        """``start`` to ``end`` cut after each of ``cuts`` inside it: the pieces meet at
+        consecutive samples."""
+        pieces = []
+        for cut in sorted(cuts):
+            after = self._next_time(cut)
+            if start <= cut < end and after is not None:
+                pieces.append((start, cut))
+                start = after
+        return pieces + [(start, end)]
 
     def intervals(self, name: str, *args: str) -> list[Interval]:
         return self._intervals.get((name, args), [])

@@ -116,6 +116,18 @@ def test_the_knowledge_base_offers_exactly_the_properties_the_simulator_honours(
         assert honoured - set(offered[cls]) <= {'particles', 'joints'}, cls
 
 
+def test_class_defaults_and_factory_objects_use_only_honoured_properties():
+    classes = json.dumps(sorted(CLASSES)).replace('"', '')
+    defaults = kb(f'findall(C-D, (member(C, {classes}), kb_class_defaults(C, D)), Ps), '
+                  'dict_pairs(J, c, Ps), json_write_dict(current_output, J)')
+    for cls, values in defaults.items():
+        assert set(values) <= set(accepted_properties(cls)), cls
+    pancake = kb('use_module(prolog/object_factory), object_model(pancake, _{name: p, '
+                 'particles: [[0.0, 0.0, 0.75], [0.01, 0.0, 0.75], [0.0, 0.01, 0.75]]}, E), '
+                 'json_write_dict(current_output, _{name: s, entities: [E]})')
+    parse_scenario(pancake)
+
+
 @pytest.mark.parametrize('name', ['grasping', 'pouring', 'turning'])
 def test_the_knowledge_bases_scenarios_use_only_honoured_properties(name):
     parse_scenario(kb(f'scenario_description({name}, D), json_write_dict(current_output, D)'))

@@ -121,3 +121,22 @@ def test_an_egg_given_on_the_table_starts_clear_of_it(client, make_scenario):
     physics = build_world(client, parse_scenario(make_scenario()), load_settings())
     egg, table = physics.body('egg1').body_id, physics.body('table1').body_id
     assert min(p[8] for p in client.getClosestPoints(egg, table, 0.01)) >= 0.0
+
+
+def test_the_remains_of_a_broken_egg_lie_where_the_egg_lay(client, make_scenario):
+    physics = build_world(client, parse_scenario(make_scenario()), load_settings())
+    for _ in range(60):
+        physics.step()
+    egg = physics.body('egg1').body_id
+    bottom = client.getAABB(egg)[0][2]
+    (shell,) = physics.models
+    shell.broken = True
+    shell._replace(physics, 'egg1')
+    remains = physics.body('egg1').body_id
+    assert remains != egg
+    assert client.getAABB(remains)[0][2] == pytest.approx(bottom, abs=0.002)
+    start = client.getBasePositionAndOrientation(remains)[0][2]
+    for _ in range(60):
+        physics.step()
+    assert client.getBasePositionAndOrientation(remains)[0][2] == pytest.approx(start, abs=0.002)
+    assert physics.contact_force('egg1', 'table1') == pytest.approx(0.06 * 9.81, rel=0.1)
