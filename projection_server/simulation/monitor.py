@@ -202,6 +202,10 @@ class ContactAggregator:
                 x, y, z = (xa + xb) / 2, (ya + yb) / 2, (za + zb) / 2
                 nx, ny, nz = (sign * v for v in point[7])
                 f1, (d1x, d1y, d1z), f2, (d2x, d2y, d2z) = point[10:14]
+                if other < body:
+                    # Asked from the later of a pair's bodies, PyBullet turns the normal round
+                    # but not the friction directions.
+                    f1, f2 = -f1, -f2
                 row = sums.get(key)
                 if row is None:
                     row = sums[key] = [0.0] * 17
