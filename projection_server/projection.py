@@ -88,7 +88,8 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
 
     Arguments left as None keep their current value. ``retention`` is a
     :class:`~projection_server.workers.Retention` or a dict with ``max_bags`` and
-    ``max_bytes``. A running backend is closed; the next projection starts a new one.
+    ``max_bytes``. A running backend is closed and a new one starts its workers at once,
+    so that they are warm when the first projection comes.
     """
     global _backend
     with _lock:
@@ -101,6 +102,7 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
         old, _backend = _backend, None
     if old is not None:
         old.close()
+    _get_backend()
 
 
 def project(scenario: dict[str, Any], program: str, params: dict[str, Any],

@@ -7,7 +7,8 @@ must never be forked) that keeps one warm DIRECT-mode PyBullet client
 ``(result, ok)``; exceptions travel back as :class:`ProjectionError`. Every wait in the
 parent has a time limit. A worker that crashes or runs over its projection's time limit is
 terminated, its projection fails with kind ``worker_crashed`` or ``timeout``, and a new
-worker is started for the next projection. Each projection builds a fresh world. PyBullet
+worker is started for the next projection. Workers start with the pool, so the first
+projection finds them warm. Each projection builds a fresh world. PyBullet
 keeps about 0.1 MB per world it has built, even after ``resetSimulation``, so a worker is
 replaced by a fresh one after ``max_projections`` projections (at once, not when the next
 projection comes).
@@ -203,6 +204,10 @@ class _Slot:
     def _loop(self) -> None:
         pool = self._pool
         try:
+            try:   # warm before the first projection comes
+                self._ensure_worker()
+            except ProjectionError:
+                pass   # the first projection tries again and reports it
             while (request := pool._queue.get()) is not None:
                 with pool._lock:
                     future = request.future
