@@ -6,7 +6,8 @@ Runs the same projections twice in one process, alternating:
   program with the object models, monitor, write the MCAP bag, make the timeline from the
   samples in memory, and store it in Prolog (``timeline_create/2``, as ``translate/2``
   does), with a warm simulator (:class:`projection_server.simulation.runner.Simulator`);
-* **floor**: the same world and program, stepped bare: ``stepSimulation`` and, for each
+* **floor**: the same world and program, stepped bare (and once more with the object
+  models, to tell their cost from the logging's): ``stepSimulation`` and, for each
   body with an object model (the egg), one contact query per step; nothing else (no
   object model computations, no monitoring, no bag).
 
@@ -76,8 +77,9 @@ def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
             'translate': made['translate'], 'prolog': prolog}
 
 
-def floor(client, job, settings) -> float:
-    """Bare stepping of the job's world and program [s]."""
+def floor(client, job, settings, models: bool = False) -> float:
+    """Bare stepping of the job's world and program [s]; with ``models``, each step also
+    runs the object models (the egg's shell), still without monitoring or bag."""
     from projection_server.simulation.programs import get as get_program
     from projection_server.simulation.scenario import parse_scenario
     from projection_server.simulation.world import build_world
@@ -94,6 +96,9 @@ def floor(client, job, settings) -> float:
     for step in range(steps):
         if step % control == 0:
             task.control(physics)
+        if models:
+            physics.step()
+            continue
         client.stepSimulation()
         physics.step_count += 1
         for body in modelled:
@@ -168,6 +173,7 @@ def main() -> int:
                     for name, value in parts.items():
                         row.setdefault(name, []).append(value)
                     row.setdefault('floor', []).append(floor(bare, job, settings))
+                    row.setdefault('models', []).append(floor(bare, job, settings, True))
     simulator.close()
     bare.disconnect()
 
@@ -186,7 +192,8 @@ def main() -> int:
               f'iterations): pipeline {med["total"] * 1e3:7.1f} ms (simulate+log '
               f'{med["simulate+log"] * 1e3:.1f}, translate {med["translate"] * 1e3:.1f}, '
               f'prolog {med["prolog"] * 1e3:.1f}), floor {med["floor"] * 1e3:7.1f} ms, '
-              f'ratio {ratio:.2f}x (median of {len(row["total"])} pairs)')
+              f'ratio {ratio:.2f}x (median of {len(row["total"])} pairs); stepping with the '
+              f'object models {med["models"] * 1e3:.1f} ms')
     return 0
 
 
