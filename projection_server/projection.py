@@ -88,8 +88,9 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
 
     Arguments left as None keep their current value. ``retention`` is a
     :class:`~projection_server.workers.Retention` or a dict with ``max_bags`` and
-    ``max_bytes``. A running backend is closed and a new one starts its workers at once,
-    so that they are warm when the first projection comes.
+    ``max_bytes``. A running backend is closed; a new ``local`` one starts its workers at
+    once, so that they are warm when the first projection comes (a ``ray`` one when the
+    first projection needs it).
     """
     global _backend
     with _lock:
@@ -102,7 +103,8 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
         old, _backend = _backend, None
     if old is not None:
         old.close()
-    _get_backend()
+    if _config['backend'] == 'local':
+        _get_backend()
 
 
 def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
