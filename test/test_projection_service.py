@@ -154,3 +154,18 @@ def test_a_numeric_range_enumerates_in_order(call):
                  60, _)''')
     assert r.ok, r.message
     assert [s['F'] for s in sols] == [2.0, 2.5, 3.0]
+
+
+def test_the_projection_asked_for_is_made_before_the_prefetched_ones(client):
+    # One worker: behind its prefetched successor, the first projection would be made second.
+    import os
+
+    text = '''make_projection(grasping, grasp_object, [(F, force, [2.25, 2.75, 3.25]),
+                                                    (_, position, [0.01])], TL),
+              timeline_property(TL, meta(M)), get_dict(bag, M, Bag)'''
+    with client.query(text, timeout=SIM_TIMEOUT) as solutions:
+        first, second = (s for s, _ in zip(solutions, range(2)))
+    assert (first['F'], second['F']) == (2.25, 2.75)
+    made = [os.stat(os.path.join(s['Bag'], 'metadata.yaml')).st_mtime_ns
+            for s in (first, second)]
+    assert made[0] < made[1]
