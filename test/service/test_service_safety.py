@@ -293,3 +293,18 @@ def test_finish_stops_a_running_projection_query_within_a_second(call, node):
     print(f'cancel answered after {stopped:.3f} s; engine free after {freed:.3f} s')
     node.destroy_client(q)
     alive(call)
+
+
+def test_a_bag_dir_under_a_regular_file_stops_the_node_with_a_clear_message(tmp_path):
+    from projection_server.launcher import node_command, NodeProcess
+    blocker = tmp_path / 'file'
+    blocker.write_text('not a directory')
+    log = tmp_path / 'node.log'
+    with NodeProcess(node_command('bad_bag_dir', {'bag_dir': str(blocker / 'bags')}),
+                     log) as proc:
+        deadline = time.monotonic() + 60
+        while proc.running:
+            assert time.monotonic() < deadline, 'the node did not refuse to start'
+            time.sleep(0.2)
+    assert proc.returncode == 1
+    assert 'bag_dir' in log.read_text() and 'not a usable directory' in log.read_text()

@@ -20,6 +20,7 @@ to a :class:`~projection_server.workers.bag_store.BagStore`.
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
 from multiprocessing.connection import wait
 import queue
@@ -33,6 +34,8 @@ from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.bag_store import BagStore, Retention
 from projection_server.workers.local.process import worker_main
 from projection_server.workers.requests import Request, Requests
+
+_log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -220,6 +223,8 @@ class _Slot:
                     if request.cancelled and exc.kind == 'worker_crashed':
                         exc = ProjectionError(
                             'cancelled', f'projection {request.key[:12]} was cancelled')
+                    elif exc.kind in ('worker_crashed', 'timeout'):
+                        _log.warning('%s; a new worker starts for the next projection', exc)
                     with pool._lock:
                         pool._requests.fail(request, exc)
                 except Exception as exc:  # a bug here must fail the projection, not hang it
