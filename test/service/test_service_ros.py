@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import threading
+import os
 import time
 
 from hypothesis import given, HealthCheck, settings, strategies as st
@@ -78,7 +78,11 @@ def prolog_text(draw, depth=0):
     return 'f(' * n + 'a' + ')' * draw(st.integers(0, n))
 
 
-@settings(max_examples=60, deadline=None, derandomize=True,
+# CI runs a bounded number of examples; bench/fuzz.py runs more.
+FUZZ_EXAMPLES = int(os.environ.get('PROJECTION_SERVER_FUZZ_EXAMPLES', '60'))
+
+
+@settings(max_examples=FUZZ_EXAMPLES, deadline=None, derandomize=FUZZ_EXAMPLES <= 60,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(text=st.one_of(prolog_text(), st.text(max_size=200)),
        mode=st.sampled_from([Q.ONCE, Q.ALL_SOLUTIONS]),
