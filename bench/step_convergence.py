@@ -1,0 +1,97 @@
+"""Table I and Table III at the default time step and at 2x and 4x finer ones, in-process.
+
+Runs the knowledge base's grasping and turning scenarios (read from SWI-Prolog) with
+``grasp_object`` over Table I's forces and positions and ``turn_pancake`` over Table III's
+angles, each at ``rate_hz`` x1, x2 and x4 (``Settings.for_projection``, what a query's
+``physics`` option does; solver iterations as configured), in two processes, and prints the
+outcome grids, the cells that agree with the default step, those that agree with the paper,
+and the median wall time per projection at each step:
+
+    tools/with_env.sh python bench/step_convergence.py [--only table1|table3] [--factors 1,2,4]
+"""
+
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import ProcessPoolExecutor
+import json
+from pathlib import Path
+import statistics
+import subprocess
+import tempfile
+import time
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def kb_scenario(name: str) -> dict:
+    """A scenario description of the knowledge base, from SWI-Prolog."""
+    goal = (f'knowledge_base_load, scenario_description({name}, D), '
+            'json_write_dict(current_output, D), halt')
+    out = subprocess.run(
+        ['swipl', '-q', '-g', 'use_module(library(http/json))',
+         '-g', 'use_module(prolog/knowledge_base)', '-g', 'use_module(prolog/scenario)',
+         '-g', goal], cwd=ROOT, check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def outcome(job: tuple) -> tuple[tuple, str, float]:
+    """Run one projection; its Table I or III outcome and wall time."""
+    from projection_server.simulation import Job, load_settings
+    from projection_server.simulation.runner import run_projection
+    from projection_server.timeline.translate import translate_bag
+
+    scenario, program, params, factor = job
+    base = load_settings()
+    settings = base.for_projection(program, {'rate_hz': base.physics.rate_hz * factor})
+    bag = Path(tempfile.mkdtemp(prefix='convergence-')) / 'bag'
+    start = time.perf_counter()
+    run_projection(Job.checked(scenario, program, params), settings, bag)
+    elapsed = time.perf_counter() - start
+    timeline = translate_bag(bag)
+    if program == 'turn_pancake':
+        result = 'ok' if any(f[0] == 'upside_down' for f in timeline['fluents']) else 'fail'
+    else:
+        names = {e[0] for e in timeline['events'] if e[1] == ['egg1']}
+        result = 'break' if 'break' in names else 'slip' if 'slip' in names else 'ok'
+    return (program, tuple(sorted(params.items())), factor), result, elapsed
+
+
+def main() -> None:
+    from projection_server.reproduce import paper
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--only', choices=['table1', 'table3'])
+    parser.add_argument('--factors', default='1,2,4')
+    args = parser.parse_args()
+    factors = [int(f) for f in args.factors.split(',')]
+    tables = {
+        'table1': ('grasping', 'grasp_object',
+                   [{'force': float(f), 'position': p} for p in paper.GRASP_POSITIONS
+                    for f in paper.GRASP_FORCES],
+                   lambda q: paper.TABLE_I[(int(q['force']), q['position'])]),
+        'table3': ('turning', 'turn_pancake', [{'angle': a} for a in paper.TURN_ANGLES],
+                   lambda q: paper.TABLE_III[(q['angle'],)]),
+    }
+    for key, (scenario_name, program, cells, expected) in tables.items():
+        if args.only and key != args.only:
+            continue
+        scenario = kb_scenario(scenario_name)
+        jobs = [(scenario, program, cell, factor) for factor in factors for cell in cells]
+        with ProcessPoolExecutor(2) as pool:
+            results = {k: (r, t) for k, r, t in pool.map(outcome, jobs)}
+        print(f'{key}: {program}, {len(cells)} cells, rate x{factors}')
+        grid = {f: [results[(program, tuple(sorted(c.items())), f)][0] for c in cells]
+                for f in factors}
+        for f in factors:
+            same = sum(a == b for a, b in zip(grid[f], grid[factors[0]]))
+            paper_ = sum(r == expected(c) for r, c in zip(grid[f], cells))
+            wall = statistics.median(results[(program, tuple(sorted(c.items())), f)][1]
+                                     for c in cells)
+            print(f'  x{f}: {" ".join(f"{r:5}" for r in grid[f])}')
+            print(f'      agree with x{factors[0]}: {same}/{len(cells)}, with the paper: '
+                  f'{paper_}/{len(cells)}, median {wall:.2f} s per projection')
+
+
+if __name__ == '__main__':
+    main()
