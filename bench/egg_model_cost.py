@@ -12,10 +12,7 @@ the model's time per step, the step's time per step and their ratio.
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
 import statistics
-import subprocess
 import time
 
 import numpy as np
@@ -25,19 +22,7 @@ from projection_server.simulation.job import Job
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.world import build_world
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def grasping_scenario() -> dict:
-    """The knowledge base's ``grasping`` scenario description, from SWI-Prolog."""
-    goal = ('knowledge_base_load, scenario_description(grasping, D), '
-            'json_write_dict(current_output, D), halt')
-    out = subprocess.run(
-        ['swipl', '-q', '-g', 'use_module(library(http/json))',
-         '-g', 'use_module(prolog/knowledge_base)', '-g', 'use_module(prolog/scenario)',
-         '-g', goal], cwd=ROOT, check=True, capture_output=True, text=True).stdout
-    return json.loads(out)
+from step_convergence import kb_scenario   # bench/, this script's directory
 
 
 def grasp(scenario: dict, force: float, position: float, cache: bool) -> tuple[float, float]:
@@ -81,7 +66,7 @@ def main() -> None:
     args = parser.parse_args()
     cells = [(float(f), float(p)) for p in args.positions.split(',')
              for f in args.forces.split(',')]
-    scenario = grasping_scenario()
+    scenario = kb_scenario('grasping')
     settings = load_settings()
     print(f'{len(cells)} grasps, {settings.physics.rate_hz} Hz, '
           f'{settings.physics.solver_iterations} solver iterations')
