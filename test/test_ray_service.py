@@ -73,8 +73,8 @@ def ray_query(ray_server, node):
     client = node.create_client(PrologQuery, f'{ray_server}/query')
     assert client.wait_for_service(timeout_sec=20.0)
 
-    def send(text, mode=Q.ALL_SOLUTIONS, timeout=SIM_TIMEOUT):
-        return client.call_async(Q(mode=mode, query=text, timeout=timeout))
+    def send(text, mode=Q.ALL_SOLUTIONS, timeout=SIM_TIMEOUT, query_id=''):
+        return client.call_async(Q(mode=mode, id=query_id, query=text, timeout=timeout))
 
     def wait(future, timeout=TABLE_TIMEOUT + 60.0):
         rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
@@ -84,6 +84,16 @@ def ray_query(ray_server, node):
     send.wait = wait
     yield send
     node.destroy_client(client)
+
+
+def busy_actors(future, timeout=60.0):
+    """Until an actor runs a projection (Ray titles its process by the task): their pids."""
+    deadline = time.monotonic() + timeout
+    while not (busy := [pid for pid, (_, cmd) in actor_processes().items()
+                        if b'ProjectionActor.project' in cmd]):
+        assert time.monotonic() < deadline and not future.done()
+        time.sleep(0.005)
+    return busy
 
 
 def solutions(response):
@@ -137,11 +147,7 @@ def test_an_actor_killed_mid_query_fails_it_as_worker_crashed_and_the_node_serve
         ray_query):
     text = 'simulate(grasping, grasp_object, [(_, force, [4.2]), (_, position, [0.01])], 60, L)'
     future = ray_query(text, Q.ONCE, timeout=300.0)
-    deadline = time.monotonic() + 60.0
-    while not (busy := [pid for pid, (_, cmd) in actor_processes().items()
-                        if b'ProjectionActor.project' in cmd]):
-        assert time.monotonic() < deadline and not future.done()
-        time.sleep(0.005)
+    busy = busy_actors(future)
     os.kill(busy[0], signal.SIGKILL)
     r = ray_query.wait(future)
     assert not r.ok and r.error_kind == 'projection_error', r.message
@@ -150,3 +156,27 @@ def test_an_actor_killed_mid_query_fails_it_as_worker_crashed_and_the_node_serve
     assert r.ok, r.message
     assert Path(solutions(r)[0]['L']).is_dir()
     assert busy[0] not in actor_processes()
+
+
+def test_finishing_a_projection_query_stops_its_running_ray_workers(
+        ray_query, ray_server, node):
+    import rclpy
+    from projection_interfaces.srv import PrologFinish
+    # Forces no other test projects: every one must be simulated.
+    text = ('make_projection(grasping, grasp_object, '
+            '[(F, force, [2.31, 2.32, 2.33, 2.34, 2.35, 2.36])], _), fail')
+    future = ray_query(text, Q.ONCE, timeout=300.0, query_id='ray/cancel')
+    busy = busy_actors(future)
+    finish = node.create_client(PrologFinish, f'{ray_server}/finish')
+    assert finish.wait_for_service(timeout_sec=20.0)
+    closed = ray_query.wait(finish.call_async(PrologFinish.Request(id='ray/cancel')))
+    assert closed.closed == 1
+    r = ray_query.wait(future)
+    assert not r.ok and r.error_kind == 'cancelled', r.message
+    deadline = time.monotonic() + 30.0   # the actor running its projection is killed
+    while any(pid in actor_processes() for pid in busy):
+        assert time.monotonic() < deadline, 'the running projection went on'
+        time.sleep(0.05)
+    r = ray_query.wait(ray_query('X = still_serving', Q.ONCE))
+    assert solutions(r) == [{'X': 'still_serving'}]
+    node.destroy_client(finish)
