@@ -113,6 +113,7 @@ def main() -> int:
     os.environ.setdefault('ROS_DOMAIN_ID', str(160 + os.getpid() % 30))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
+    from projection_server.simulation import ProjectionError
     from projection_server.workers.ray.local_cluster import LocalCluster
 
     with tempfile.TemporaryDirectory() as node_dir:
@@ -129,7 +130,12 @@ def main() -> int:
         for r in range(args.repeat):
             for workers in args.workers:
                 for kind in ('local', 'ray'):
-                    result = run_once(kind, workers, address, scenarios, jobs)
+                    try:
+                        result = run_once(kind, workers, address, scenarios, jobs)
+                    except ProjectionError as exc:   # reported, and left out of the medians
+                        print(f'run {r + 1}/{args.repeat} {kind:5} workers={workers}: '
+                              f'failed: {exc}', flush=True)
+                        continue
                     for name, seconds in result.items():
                         times.setdefault((kind, workers, name), []).append(seconds)
                     print(f'run {r + 1}/{args.repeat} {kind:5} workers={workers}: '
@@ -151,6 +157,10 @@ def main() -> int:
     for name in BATCHES:
         n = len(jobs[name])
         for workers in args.workers:
+            if not all(times.get((k, w, name)) for k in ('local', 'ray')
+                       for w in (workers, args.workers[0])):
+                print(f'| {name} | {workers} | no complete runs |')
+                continue
             local = statistics.median(times[('local', workers, name)])
             ray = statistics.median(times[('ray', workers, name)])
             base = args.workers[0]
