@@ -16,6 +16,8 @@
               instantiation_error/1 ]).
 :- autoload(library(lists), [member/2, append/3]).
 :- autoload(library(pairs), [pairs_values/2]).
+:- autoload(library(aggregate), [aggregate_all/3]).
+:- autoload(library(solution_sequences), [limit/2]).
 :- use_module(knowledge_base,
               [ kb_entity/1, kb_entity_description/2, kb_scenario/2,
                 kb_class/1, kb_simulator_class/2, kb_class_defaults/2,
@@ -61,8 +63,13 @@ is copied when added: later changes to the KB do not affect it.
 The scenarios the KB defines (`grasping`, `pouring`, `turning`) exist from
 the start and are read-only, because concurrent queries share them; copy
 one with copy_scenario/2 to vary it.  Created scenarios live until
-delete_scenario/1.  Every predicate is safe to call from several threads.
+delete_scenario/1, or until more than the flag `scenario_max_created`
+(default 1000) exist: then the oldest are deleted, so that a stream of
+clients that never delete theirs runs in bounded memory.  Every predicate
+is safe to call from several threads.
 */
+
+:- create_prolog_flag(scenario_max_created, 1000, [type(integer), keep(true)]).
 
 :- dynamic
     created/1,                  % created(Scenario), in creation order
@@ -85,7 +92,17 @@ new_scenario(Scenario) :-
     format(atom(Scenario), 'scenario_~d', [N1]),
     \+ scenario_exists(Scenario),
     !,
-    assertz(created(Scenario)).
+    assertz(created(Scenario)),
+    forget_oldest.
+
+% forget_oldest: delete the oldest created scenarios beyond the flag
+% scenario_max_created (called inside update/1, so atomically).
+forget_oldest :-
+    current_prolog_flag(scenario_max_created, Max),
+    aggregate_all(count, created(_), N),
+    Excess is N - Max,
+    forall(limit(Excess, created(Old)),
+           ( retractall(record(Old, _, _)), retractall(created(Old)) )).
 
 scenario_exists(S) :-
     (   created(S) -> true ; kb_scenario(S, _) ).

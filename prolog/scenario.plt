@@ -33,6 +33,17 @@ test(create_gives_new_atoms) :-
     delete_scenario(A), delete_scenario(B).
 test(create_bound, error(uninstantiation_error(s))) :-
     create_scenario(s).
+test(oldest_created_are_forgotten_beyond_the_cap,
+     [ setup(set_prolog_flag(scenario_max_created, 2)),
+       cleanup(set_prolog_flag(scenario_max_created, 1000)),
+       Alive == [false, true, true] ]) :-
+    create_scenario(A), add_to_scenario(A, egg1),
+    copy_scenario(A, B), create_scenario(C),
+    maplist([S, T]>>(current_scenario(S) -> T = true ; T = false), [A, B, C], Alive),
+    catch(scenario_entity(A, egg1, _), error(existence_error(scenario, A), _), Gone = true),
+    Gone == true,
+    scenario_entity(B, egg1, _),
+    delete_scenario(B), delete_scenario(C).
 
 % --- the KB's scenarios
 
