@@ -6,6 +6,9 @@ Services (relative to the node's name, by default ``/projection_server/...``):
 - ``~/next_solution`` (projection_interfaces/srv/PrologNextSolution)
 - ``~/finish`` (projection_interfaces/srv/PrologFinish)
 - ``~/ping`` (std_srvs/srv/Trigger): liveness, with the number of live queries.
+
+Action: ``~/project`` (projection_interfaces/action/Project): a query with feedback after
+each projection, and cancel (:mod:`projection_server.project_action`).
 """
 
 from __future__ import annotations
@@ -23,10 +26,12 @@ import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
 from std_srvs.srv import Trigger
 
 from projection_server import projection, prolog_bridge
+from projection_server.project_action import ProjectActionServer
 from projection_server.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryEvent,
                                        QueryManager, ServerLimits)
 
@@ -93,23 +98,24 @@ class ProjectionServerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('projection_server', **kwargs)
-        self.declare_parameter('max_engines', 8, ParameterDescriptor(
-            description='Most Prolog engines (live queries) at once', read_only=True))
-        self.declare_parameter('default_timeout', 120.0, ParameterDescriptor(
-            description='Seconds a solution may take when the request gives 0'))
-        self.declare_parameter('max_solutions', 100, ParameterDescriptor(
-            description='Cap on ALL_SOLUTIONS answers when the request gives 0'))
-        self.declare_parameter('idle_timeout', 300.0, ParameterDescriptor(
-            description='Seconds after which an idle INCREMENTAL query is closed'))
+        self.declare_parameter('max_engines', 8, _int(
+            'Most Prolog engines (live queries) at once', 1, 256, read_only=True))
+        self.declare_parameter('default_timeout', 120.0, _float(
+            'Seconds a solution may take when the request gives 0', 0.001, 86400.0))
+        self.declare_parameter('max_solutions', 100, _int(
+            'Cap on ALL_SOLUTIONS answers when the request gives 0', 1, 1_000_000))
+        self.declare_parameter('idle_timeout', 300.0, _float(
+            'Seconds after which an idle INCREMENTAL query is closed', 0.001, 86400.0))
         self.declare_parameter('sandbox', True, ParameterDescriptor(
             description='Refuse goals library(sandbox) cannot prove safe'))
         self.declare_parameter('bag_dir', '', ParameterDescriptor(
             description='Where projection bags go (empty: ~/.cache/projection_server/bags)',
             read_only=True))
-        self.declare_parameter('projection_workers', 1, ParameterDescriptor(
-            description='Simulation worker processes', read_only=True))
-        self.declare_parameter('max_bags', 1000, ParameterDescriptor(
-            description='Bags kept in bag_dir; the oldest are deleted first', read_only=True))
+        self.declare_parameter('projection_workers', 1, _int(
+            'Simulation worker processes', 1, 64, read_only=True))
+        self.declare_parameter('max_bags', 1000, _int(
+            'Bags kept in bag_dir; the oldest are deleted first', 1, 10_000_000,
+            read_only=True))
         self.declare_parameter('projection_backend', 'local', ParameterDescriptor(
             description='Who runs projections: local (worker processes) or ray (Ray actors)',
             read_only=True, additional_constraints='one of: local, ray'))
@@ -139,6 +145,7 @@ class ProjectionServerNode(Node):
                             callback_group=group)
         self.create_service(PrologFinish, '~/finish', self._on_finish, callback_group=group)
         self.create_service(Trigger, '~/ping', self._on_ping, callback_group=group)
+        self.project_action = ProjectActionServer(self, self.queries, callback_group=group)
         self.create_timer(1.0, self.queries.reap,
                           callback_group=MutuallyExclusiveCallbackGroup())
         self.get_logger().info(
@@ -224,6 +231,8 @@ class ProjectionServerNode(Node):
         return response
 
     def destroy_node(self):
+        if hasattr(self, 'project_action'):
+            self.project_action.destroy()
         if hasattr(self, 'queries'):
             self.queries.shutdown()
         if hasattr(self, '_log_handler'):
@@ -256,6 +265,17 @@ def _check_bag_dir(path: Path) -> None:
 
 class StartupError(Exception):
     """The node cannot start with its parameters."""
+
+
+def _int(description: str, low: int, high: int, read_only: bool = False
+         ) -> ParameterDescriptor:
+    return ParameterDescriptor(description=description, read_only=read_only, integer_range=[
+        IntegerRange(from_value=low, to_value=high, step=1)])
+
+
+def _float(description: str, low: float, high: float) -> ParameterDescriptor:
+    return ParameterDescriptor(description=description, floating_point_range=[
+        FloatingPointRange(from_value=low, to_value=high, step=0.0)])
 
 
 def main(args=None) -> int:

@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import atexit
 from collections import OrderedDict
+import logging
 import os
 from pathlib import Path
 import threading
+import time
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation import programs as _programs
@@ -56,6 +58,7 @@ __all__ = [
 
 _POLL = 1.0   # s between checks that the backend still runs while waiting for a result
 
+_log = logging.getLogger('projection_server.projection')
 _lock = threading.Lock()
 _backend: WorkerBackend | None = None
 _config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None,
@@ -135,7 +138,18 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
     """Like :func:`project`, but return the path of the bag and keep the timeline for
     :func:`timeline`."""
     owner = owner if owner is not None else _thread_owner()
-    result = _wait(submit(scenario, program, params, timeout, owner, physics), owner)
+    future = submit(scenario, program, params, timeout, owner, physics)
+    cached = future.done()   # its bag was made before, or prefetched and is done
+    started = time.monotonic()
+    _log.debug('projection %s %s started', program, params)
+    try:
+        result = _wait(future, owner)
+    except ProjectionError as exc:
+        _log.info('projection %s %s failed after %.2f s: %s', program, params,
+                  time.monotonic() - started, exc)
+        raise
+    _log.info('projection %s %s ended in %.2f s%s: %s', program, params,
+              time.monotonic() - started, ' (cache hit)' if cached else '', result.bag)
     if result.timeline is not None:
         with _lock:
             _timelines[result.bag] = result.timeline

@@ -26,7 +26,7 @@ import time
 from typing import Any, Callable
 import uuid
 
-from projection_server import projection, prolog_bridge
+from projection_server import progress, projection, prolog_bridge
 
 __all__ = [
     'ALL',
@@ -249,6 +249,7 @@ class QuerySession:
             self._exit()
             return
         projection.set_owner(self.owner)
+        progress.bind(self.id)  # projections made on this thread report to this query
         try:
             self._busy = True
             checked = prolog_bridge.check(self.text, self.options)

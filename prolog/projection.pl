@@ -11,13 +11,14 @@
 :- autoload(library(error),
             [ must_be/2, domain_error/2, existence_error/2, type_error/2,
               instantiation_error/1 ]).
-:- autoload(library(lists), [member/2, nth0/3, numlist/3]).
+:- autoload(library(lists), [list_to_set/2, member/2, nth0/3, numlist/3]).
 :- autoload(library(option), [option/3]).
 :- autoload(library(aggregate), [aggregate_all/3]).
 :- autoload(library(solution_sequences), [limit/2]).
 :- use_module(library(janus), [py_call/2]).
 :- use_module(scenario, [scenario_description/2]).
-:- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1]).
+:- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1,
+                         occurs/3]).
 
 /** <module> Simulation-based temporal projection (the paper's section III-B)
 
@@ -101,7 +102,18 @@ make_projection(Scenario, Program, Params, Timeline) :-
 
 make_projection(Scenario, Program, Params, Options, Timeline) :-
     simulate(Scenario, Program, Params, Options, Log),
-    translate(Log, Timeline).
+    translate(Log, Timeline),
+    report_progress(Log, Timeline).
+
+% The running query's progress listener (feedback of the ~/project action) hears of
+% each finished projection: its place in the enumeration, parameters, events and bag.
+report_progress(Log, Timeline) :-
+    b_getval('$projection_step', step(I, Total, Program, Values)),
+    findall(Name, ( occurs(Event, _, Timeline), functor(Event, Name, _) ), Names0),
+    list_to_set(Names0, Names),
+    Index is I + 1,
+    py_call('projection_server.progress':projection_done(Index, Total, Program, Values,
+                                                         Log, Names)).
 
 %!  simulate(+Scenario, +Program, +Params, +Options, -Log) is nondet.
 %
@@ -126,7 +138,9 @@ simulate(Scenario, Program, Params, Options, Log) :-
     nth0(I, All, Values),
     prefetch(Description, Program, All, I, Depth, Timeout, Physics),
     maplist(bind_choice(Values), Choices),
-    run_simulation(Description, Program, Values, Timeout, Physics, Log).
+    run_simulation(Description, Program, Values, Timeout, Physics, Log),
+    length(All, Total),
+    b_setval('$projection_step', step(I, Total, Program, Values)).
 
 bind_choice(Values, choice(Var, Name, _)) :-
     get_dict(Name, Values, Var).
