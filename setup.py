@@ -28,7 +28,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*')),
         *tree('prolog', 'share/' + package_name + '/prolog'),
     ],
-    install_requires=['setuptools', 'numpy', 'pyyaml', 'pybullet', 'rosbags'],
+    install_requires=['setuptools', 'numpy', 'pyyaml', 'pybullet', 'rosbags', 'tqdm'],
     zip_safe=True,
     maintainer='projection_server maintainers',
     maintainer_email='maintainers@projection-server.org',
@@ -37,7 +37,7 @@ setup(
     entry_points={
         'console_scripts': [
             'projection_server = projection_server.node:main',
-            'prolog_query = projection_server.cli:main',
+            'prolog_query = projection_server.client.cli:main',
             'projection_reproduce = projection_server.reproduce.__main__:main',
         ],
     },

@@ -9,7 +9,7 @@ import pytest
 
 from projection_server.bindings import (Atom, Compound, DecodeError, Var, decode,
                                         decode_solution, to_prolog_text)
-from projection_server.cli import format_table
+from projection_server.client.cli import format_table
 
 
 def test_atoms_and_strings_differ():

@@ -144,6 +144,10 @@ if [ "$(cat "$install_prefix/.key" 2>/dev/null)" != "$pkg_key" ]; then
   log "installing projection_server into $install_prefix"
   rm -rf "$install_prefix" "$root/build"
   pip_q --no-deps --no-build-isolation --prefix "$install_prefix" "$root"
+  # `ros2 run projection_server X` looks in lib/<package>; pip puts scripts in bin/.
+  mkdir -p "$install_prefix/lib/projection_server"
+  mv "$install_prefix"/bin/* "$install_prefix/lib/projection_server/"
+  rmdir "$install_prefix/bin"
   rm -rf "$root/build" "$root"/*.egg-info
   echo "$pkg_key" >"$install_prefix/.key"
 fi

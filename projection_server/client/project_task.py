@@ -1,0 +1,121 @@
+"""One goal of the ``~/project`` action, in nav2_simple_commander's shape.
+
+>>> task = client.project(query)            # sent; returns at once
+>>> while not task.is_done():
+...     fb = task.feedback()                 # latest feedback, or None
+>>> task.status                              # TaskResult.SUCCEEDED / CANCELED / FAILED
+>>> task.result()                            # decoded solutions, or raises
+"""
+
+from __future__ import annotations
+
+import enum
+import threading
+import time
+from typing import Any, Callable, TYPE_CHECKING
+
+from action_msgs.msg import GoalStatus
+from projection_interfaces.action import Project
+
+from projection_server.bindings import decode_solution
+from projection_server.client.prolog_client import (PrologClientError, PrologDeadlineError,
+                                                    PrologQueryError)
+
+if TYPE_CHECKING:
+    from rclpy.action import ActionClient
+
+    from projection_server.client.prolog_client import PrologClient
+
+__all__ = ['ProjectTask', 'TaskResult', 'task_result']
+
+
+class TaskResult(enum.Enum):
+    """How a task ended (None while it runs)."""
+
+    SUCCEEDED = 'succeeded'
+    CANCELED = 'canceled'
+    FAILED = 'failed'
+
+
+def task_result(status: int) -> TaskResult | None:
+    """The :class:`TaskResult` of an ``action_msgs/GoalStatus`` status."""
+    return {GoalStatus.STATUS_SUCCEEDED: TaskResult.SUCCEEDED,
+            GoalStatus.STATUS_CANCELED: TaskResult.CANCELED,
+            GoalStatus.STATUS_ABORTED: TaskResult.FAILED}.get(status)
+
+
+class ProjectTask:
+    """A sent ``~/project`` goal: feedback, cancel, result."""
+
+    def __init__(self, client: PrologClient, action: ActionClient, query: str, *,
+                 once: bool, timeout: float, max_solutions: int, query_id: str,
+                 feedback_callback: Callable[[Any], None] | None = None):
+        self._client = client
+        self.id = query_id
+        self._feedback = None
+        self._callback = feedback_callback
+        self._lock = threading.Lock()
+        goal = Project.Goal(mode=Project.Goal.ONCE if once else Project.Goal.ALL_SOLUTIONS,
+                            id=query_id, query=query, timeout=float(timeout),
+                            max_solutions=max_solutions)
+        sent = action.send_goal_async(goal, feedback_callback=self._on_feedback)
+        self._handle = client.wait(sent, 'the ~/project action')
+        if not self._handle.accepted:
+            raise PrologClientError('the ~/project action refused the goal')
+        self._result_future = self._handle.get_result_async()
+
+    def _on_feedback(self, message: Any) -> None:
+        with self._lock:
+            self._feedback = message.feedback
+        if self._callback is not None:
+            self._callback(message.feedback)
+
+    def feedback(self) -> Any:
+        """The latest ``Project.Feedback`` (one per finished projection), or None."""
+        with self._lock:
+            return self._feedback
+
+    def is_done(self) -> bool:
+        return self._result_future.done()
+
+    @property
+    def status(self) -> TaskResult | None:
+        if not self._result_future.done():
+            return None
+        return task_result(self._result_future.result().status)
+
+    def cancel(self, wait: float = 5.0) -> bool:
+        """Ask the server to stop; True when it accepted (the result then follows)."""
+        if self.is_done():
+            return False
+        future = self._handle.cancel_goal_async()
+        try:
+            response = self._client.wait(future, 'the ~/project cancel', wait)
+        except PrologClientError:
+            return False
+        return len(response.goals_canceling) > 0
+
+    def wait(self, deadline: float | None = None) -> Any:
+        """The raw ``Project.Result`` once the goal ends (cancelled on deadline or Ctrl-C)."""
+        start = time.monotonic()
+        try:
+            return self._client.wait(self._result_future, 'the ~/project action', None,
+                                     deadline).result
+        except (KeyboardInterrupt, PrologDeadlineError):
+            if self.cancel():
+                try:   # the result says how far it got
+                    self._client.wait(self._result_future, 'the ~/project action', 5.0)
+                except PrologClientError:
+                    pass
+            if deadline is not None and time.monotonic() - start >= deadline:
+                raise PrologDeadlineError(f'no result within the deadline of {deadline:g} s;'
+                                          ' the query was cancelled') from None
+            raise
+
+    def result(self, deadline: float | None = None) -> list[dict[str, Any]]:
+        """The decoded solutions; raises :class:`PrologQueryError` (kind ``cancelled`` for
+        a cancelled goal) when the goal did not succeed."""
+        result = self.wait(deadline)
+        if not result.ok:
+            raise PrologQueryError(result.error_kind, result.message, result.error)
+        return [decode_solution(s) for s in result.solutions]
