@@ -11,13 +11,20 @@ Topics (:data:`TOPICS`):
 ``/projection/info``      ``ProjectionInfo``, once at t = 0: scenario, program, parameters,
                           settings, code version
 ``/tf_static``            ``TFMessage``, once: poses of static bodies (table, floor...)
-``/tf``                   ``TFMessage``, every monitoring step: poses of the other bodies and
-                          of the gripper links, parent frame ``world``
+``/tf``                   ``TFMessage``, every monitoring step: poses of the other bodies
+                          (parent frame ``world``) and of their links: a robot's links as a
+                          chain under the robot (each in its URDF parent link's frame), other
+                          bodies' links in ``world``
+``/clock``                ``rosgraph_msgs/Clock``, every monitoring step: the simulated time
 ``/projection/markers``   ``MarkerArray``: shapes of the bodies, at t = 0 and on each change
 ``/projection/contacts``  ``ContactArray``, every monitoring step
 ``/projection/gripper``   ``GripperState``, every monitoring step, one per gripper
 ``/projection/objects``   ``ObjectStateArray``, every monitoring step (loads, broken flags)
 ========================  ===================================================================
+
+Each topic records the QoS its publisher would offer (:func:`offered_qos`), as rosbag2
+does, so that ``ros2 bag play`` republishes ``/tf_static`` transient-local (a late RViz
+still gets the static frames) and everything reliable.
 """
 
 from __future__ import annotations
@@ -37,8 +44,10 @@ if TYPE_CHECKING:
 __all__ = [
     'BagWriter',
     'INTERFACE_PACKAGE',
+    'LATCHED',
     'TOPICS',
     'message_definitions',
+    'offered_qos',
     'read_bag',
     'typestore',
 ]
@@ -52,7 +61,26 @@ TOPICS = {
     'contacts': '/projection/contacts',
     'gripper': '/projection/gripper',
     'objects': '/projection/objects',
+    'clock': '/clock',
 }
+# Published once and latched: late subscribers must still get it.
+LATCHED = frozenset({TOPICS['tf_static'], TOPICS['info']})
+
+
+def offered_qos(topic: str) -> Any:
+    """The QoS profile a publisher of ``topic`` offers: reliable, keep last; transient
+    local (depth 1) for the latched topics, volatile (depth 100) for the others, as
+    tf2_ros' broadcasters and rosbag2's defaults do."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+
+    infinite = QosTime(sec=9223372036, nsec=854775807)   # RMW_DURATION_INFINITE
+    latched = topic in LATCHED
+    return Qos(history=QosHistory.KEEP_LAST, depth=1 if latched else 100,
+               reliability=QosReliability.RELIABLE,
+               durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+               deadline=infinite, lifespan=infinite, liveliness=QosLiveliness.AUTOMATIC,
+               liveliness_lease_duration=infinite, avoid_ros_namespace_conventions=False)
 
 
 def message_definitions() -> dict[str, str]:
@@ -121,7 +149,9 @@ class BagWriter:
         msgtype = message.__msgtype__
         connection = self._connections.get(topic)
         if connection is None:
-            connection = self._writer.add_connection(topic, msgtype, typestore=self._store)
+            connection = self._writer.add_connection(
+                topic, msgtype, typestore=self._store,
+                offered_qos_profiles=[offered_qos(topic)])
             self._connections[topic] = connection
         self._writer.write(connection, int(t_ns), self._store.serialize_cdr(message, msgtype))
 

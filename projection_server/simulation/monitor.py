@@ -40,6 +40,10 @@ class Monitor:
         self.bag = bag
         self.contacts = ContactAggregator(physics)
         physics.step_hooks.append(self.contacts.add_step)
+        # The robot's links hang off their URDF parents (a tf chain under the robot);
+        # other multibodies' links, like their bases, off the world.
+        self._parents = {body.name: _link_parents(physics, body)
+                         for body in physics.bodies.values() if body.cls == 'robot'}
 
     def start(self, info: dict[str, str]) -> None:
         """t = 0: the projection's description, the static poses and the shapes."""
@@ -62,11 +66,23 @@ class Monitor:
         for body in physics.bodies.values():
             if body.static or body.group is not None:
                 continue
-            transforms.append(self._transform(t, body.name, *physics.pose(body.name)))
-            for link, link_name in body.links.items():
-                transforms.append(self._transform(t, f'{body.name}/{link_name}',
-                                                  *physics.link_pose(body.name, link)))
+            base = physics.pose(body.name)
+            transforms.append(self._transform(t, body.name, *base))
+            parents = self._parents.get(body.name)
+            if parents is None:
+                for link, link_name in body.links.items():
+                    transforms.append(self._transform(t, f'{body.name}/{link_name}',
+                                                      *physics.link_pose(body.name, link)))
+                continue
+            world = {-1: base}
+            for link in sorted(body.links):   # PyBullet numbers a parent before its child
+                world[link] = physics.link_pose(body.name, link)
+                parent = parents[link]
+                transforms.append(self._transform(
+                    t, _link_frame(body, link), *_relative(physics, world[parent], world[link]),
+                    parent=_link_frame(body, parent)))
         bag.write(TOPICS['tf'], bag.new('tf2_msgs/msg/TFMessage', transforms=transforms), t)
+        bag.write(TOPICS['clock'], bag.new('rosgraph_msgs/msg/Clock', clock=self._stamp(t)), t)
         self._particles(t)
         contacts = [bag.new(
             _MSG + 'Contact', body_a=c.body_a, link_a=c.link_a, body_b=c.body_b,
@@ -142,10 +158,12 @@ class Monitor:
             mesh_file=new('visualization_msgs/msg/MeshFile', filename='', data=empty),
             mesh_use_embedded_materials=False)
 
+    def _stamp(self, t: int) -> Any:
+        return self.bag.new('builtin_interfaces/msg/Time', sec=t // 1_000_000_000,
+                            nanosec=t % 1_000_000_000)
+
     def _header(self, t: int, frame: str = WORLD_FRAME) -> Any:
-        stamp = self.bag.new('builtin_interfaces/msg/Time', sec=t // 1_000_000_000,
-                             nanosec=t % 1_000_000_000)
-        return self.bag.new('std_msgs/msg/Header', stamp=stamp, frame_id=frame)
+        return self.bag.new('std_msgs/msg/Header', stamp=self._stamp(t), frame_id=frame)
 
     def _point(self, xyz: Any) -> Any:
         return self.bag.new('geometry_msgs/msg/Point', x=float(xyz[0]), y=float(xyz[1]),
@@ -155,9 +173,10 @@ class Monitor:
         return self.bag.new('geometry_msgs/msg/Vector3', x=float(xyz[0]), y=float(xyz[1]),
                             z=float(xyz[2]))
 
-    def _transform(self, t: int, child: str, position: Any, orientation: Any) -> Any:
+    def _transform(self, t: int, child: str, position: Any, orientation: Any,
+                   parent: str = WORLD_FRAME) -> Any:
         new = self.bag.new
-        return new('geometry_msgs/msg/TransformStamped', header=self._header(t),
+        return new('geometry_msgs/msg/TransformStamped', header=self._header(t, parent),
                    child_frame_id=child, transform=new(
                        'geometry_msgs/msg/Transform', translation=self._vector(position),
                        rotation=new('geometry_msgs/msg/Quaternion', x=orientation[0],
@@ -257,3 +276,14 @@ class ContactAggregator:
 
 def _link_frame(body: Body, link: int) -> str:
     return f'{body.name}/{body.links[link]}' if link >= 0 else body.name
+
+
+def _link_parents(physics: Physics, body: Body) -> dict[int, int]:
+    """Link index -> index of its parent link (-1: the base), from the loaded URDF."""
+    return {link: physics.client.getJointInfo(body.body_id, link)[16] for link in body.links}
+
+
+def _relative(physics: Physics, parent: Any, child: Any) -> tuple[Any, Any]:
+    """The pose ``child`` (world) in the frame of the pose ``parent`` (world)."""
+    client = physics.client
+    return client.multiplyTransforms(*client.invertTransform(*parent), *child)

@@ -208,10 +208,16 @@ def _sorted_events(events: list[list[Any]]) -> list[list[Any]]:
 
 
 def _poses(msg: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World poses of a TFMessage's frames; a frame whose parent is another frame of the
+    message (a robot's link chain, parents first) is composed with it."""
     out = {}
     for tr in msg.transforms:
         t, q = tr.transform.translation, tr.transform.rotation
-        out[tr.child_frame_id] = (np.array([t.x, t.y, t.z]), _matrix((q.x, q.y, q.z, q.w)))
+        position, rotation = np.array([t.x, t.y, t.z]), _matrix((q.x, q.y, q.z, q.w))
+        parent = out.get(tr.header.frame_id)
+        if parent is not None:
+            position, rotation = parent[0] + parent[1] @ position, parent[1] @ rotation
+        out[tr.child_frame_id] = (position, rotation)
     return out
 
 
