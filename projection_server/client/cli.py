@@ -103,6 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     previous = signal.signal(signal.SIGTERM, _raise_terminated)
     client = None
+    server_gone = False
     try:
         client = PrologClient(args.server, service_timeout=args.wait, name='prolog_query')
         if args.mode == 'incremental':
@@ -128,6 +129,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say(f'{exc}')
         return EXIT_DEADLINE
     except PrologClientError as exc:
+        server_gone = True
         _say(f'{exc}')
         return EXIT_UNAVAILABLE
     except Terminated:
@@ -140,7 +142,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, previous)
         if client is not None:
             try:
-                client.close()
+                client.close(finish=not server_gone)
             except KeyboardInterrupt:
                 pass
         rclpy.try_shutdown()

@@ -104,12 +104,14 @@ class PrologClient:
                                          name=f'{self.name}-spin')
         self._spinner.start()
 
-    def close(self) -> None:
-        """Finish this client's open queries and release its node."""
-        try:
-            self.finish_all()
-        except PrologClientError:
-            pass
+    def close(self, finish: bool = True) -> None:
+        """Finish this client's open queries (unless ``finish`` is False: the server is
+        gone) and release its node."""
+        if finish:
+            try:
+                self.finish_all()
+            except PrologClientError:
+                pass
         self._executor.shutdown()
         self._spinner.join(timeout=5.0)
         self._node.destroy_node()
