@@ -63,11 +63,13 @@ class ProjectActionServer:
         query_id = self._query_id(goal_handle)
         started = time.monotonic()
         mode = _MODES.get(goal.mode)
+        sent = [0]
 
         def feedback(done: progress.ProjectionDone) -> None:
             with self._lock:
                 if query_id in self._cancelled:
                     raise progress.QueryCancelled(f'query {query_id} was cancelled')
+            sent[0] += 1
             goal_handle.publish_feedback(Project.Feedback(
                 index=done.index, total=done.total, projections=done.count,
                 program=done.program, parameters=json.dumps(done.parameters),
@@ -87,10 +89,11 @@ class ProjectActionServer:
             self._cancelled.discard(query_id)
         result = Project.Result(ok=answer.ok and not cancelled, message=answer.message,
                                 id=answer.id, error_kind=answer.kind, error=answer.error,
-                                solutions=answer.solutions, truncated=answer.truncated)
+                                solutions=answer.solutions, truncated=answer.truncated,
+                                projections=sent[0])
         if cancelled:
             n = len(answer.solutions)
-            result.error_kind = 'cancelled'
+            result.error_kind, result.error = 'cancelled', ''
             result.message = (f'cancelled after {time.monotonic() - started:.1f} s with '
                               f'{n} solution{"" if n == 1 else "s"}')
             goal_handle.canceled()

@@ -32,7 +32,7 @@ def test_table_i_sends_feedback_after_each_of_its_18_projections(prolog):
     feedback = []
     task = prolog.project(TABLE_I, timeout=120.0, feedback_callback=feedback.append)
     solutions = task.result(deadline=600.0)
-    assert task.status == TaskResult.SUCCEEDED
+    assert task.status == TaskResult.SUCCEEDED and task.wait().projections == 18
     assert [f.index for f in feedback] == list(range(1, 19))
     assert {f.total for f in feedback} == {18}
     assert [f.projections for f in feedback] == list(range(1, 19))

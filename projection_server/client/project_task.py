@@ -53,6 +53,7 @@ class ProjectTask:
         self._client = client
         self.id = query_id
         self._feedback = None
+        self._received = 0
         self._callback = feedback_callback
         self._lock = threading.Lock()
         goal = Project.Goal(mode=Project.Goal.ONCE if once else Project.Goal.ALL_SOLUTIONS,
@@ -67,6 +68,7 @@ class ProjectTask:
     def _on_feedback(self, message: Any) -> None:
         with self._lock:
             self._feedback = message.feedback
+            self._received += 1
         if self._callback is not None:
             self._callback(message.feedback)
 
@@ -99,8 +101,10 @@ class ProjectTask:
         """The raw ``Project.Result`` once the goal ends (cancelled on deadline or Ctrl-C)."""
         start = time.monotonic()
         try:
-            return self._client.wait(self._result_future, 'the ~/project action', None,
-                                     deadline).result
+            result = self._client.wait(self._result_future, 'the ~/project action', None,
+                                       deadline).result
+            self._await_feedback(result.projections)
+            return result
         except (KeyboardInterrupt, PrologDeadlineError):
             if self.cancel():
                 try:   # the result says how far it got
@@ -111,6 +115,16 @@ class ProjectTask:
                 raise PrologDeadlineError(f'no result within the deadline of {deadline:g} s;'
                                           ' the query was cancelled') from None
             raise
+
+    def _await_feedback(self, count: int, patience: float = 1.0) -> None:
+        # Feedback (a topic) and the result (a service) travel separately: the last
+        # feedback may arrive just after the result.
+        end = time.monotonic() + patience
+        while time.monotonic() < end:
+            with self._lock:
+                if self._received >= count:
+                    return
+            time.sleep(0.01)
 
     def result(self, deadline: float | None = None) -> list[dict[str, Any]]:
         """The decoded solutions; raises :class:`PrologQueryError` (kind ``cancelled`` for
