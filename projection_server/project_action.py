@@ -77,7 +77,7 @@ class ProjectActionServer:
                 elapsed=time.monotonic() - started))
 
         if mode is None:
-            answer = QueryAnswer(id=query_id, ok=False, kind='domain_error', message=(
+            answer = QueryAnswer(id=query_id, ok=False, kind='invalid_request', message=(
                 f'unknown mode {goal.mode} for ~/project: ALL_SOLUTIONS (0) or ONCE (2); '
                 'INCREMENTAL queries use ~/query and ~/next_solution'))
         else:

@@ -71,7 +71,7 @@ def test_a_cancelled_goal_stops_and_frees_its_engine(prolog):
     assert prolog.once('X = still_serving') == {'X': 'still_serving'}
 
 
-def test_an_incremental_goal_ends_aborted_with_a_domain_error(server, node):
+def test_an_incremental_goal_ends_aborted_as_an_invalid_request(server, node):
     import rclpy
     from action_msgs.msg import GoalStatus
     from projection_interfaces.action import Project
@@ -84,7 +84,7 @@ def test_an_incremental_goal_ends_aborted_with_a_domain_error(server, node):
     done = sent.result().get_result_async()
     rclpy.spin_until_future_complete(node, done, timeout_sec=30.0)
     assert done.result().status == GoalStatus.STATUS_ABORTED
-    assert done.result().result.error_kind == 'domain_error'
+    assert done.result().result.error_kind == 'invalid_request'
     client.destroy()
 
 

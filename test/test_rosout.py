@@ -35,5 +35,5 @@ def test_the_node_logs_each_projection_to_rosout(server, node, call):
 
 
 def _projection_logs(records, name: str) -> list:
-    return [m for m in records if m.name == f'{name}.projection'
+    return [m for m in records if m.name == name
             and "grasp_object {'force': 2.7}" in m.msg and 'ended in' in m.msg]
