@@ -65,8 +65,11 @@ def test_a_cancelled_goal_stops_and_frees_its_engine(prolog):
     assert task.status == TaskResult.CANCELED and info.value.kind == 'cancelled'
     result = task.wait()
     assert 2 <= len(result.solutions) < 8 and len(feedback) < 8
-    # It stops at the end of the projection under way: one projection takes about a second.
-    assert stopped < 15.0, stopped
+    assert stopped < 15.0, stopped   # a loose bound: bench/project_action.py measures it
+    # The query's engine is released by its own thread, just after the result went out.
+    free_by = time.monotonic() + 5.0
+    while json.loads(_ping(prolog))['engines'] and time.monotonic() < free_by:
+        time.sleep(0.05)
     assert json.loads(_ping(prolog))['engines'] == 0
     assert prolog.once('X = still_serving') == {'X': 'still_serving'}
 
