@@ -92,6 +92,11 @@ class ProjectActionServer:
                                 solutions=answer.solutions, truncated=answer.truncated,
                                 projections=sent[0])
         if cancelled:
+            # The query may stop before the server has moved the goal to CANCELING, which
+            # it does once the cancel callback has returned; canceled() needs that state.
+            until = time.monotonic() + 5.0
+            while not goal_handle.is_cancel_requested and time.monotonic() < until:
+                time.sleep(0.005)
             n = len(answer.solutions)
             result.error_kind, result.error = 'cancelled', ''
             result.message = (f'cancelled after {time.monotonic() - started:.1f} s with '
