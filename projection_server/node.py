@@ -128,7 +128,10 @@ class ProjectionServerNode(Node):
         _check_bag_dir(Path(bag_dir).expanduser() if bag_dir else projection.default_bag_dir())
         self._log_handler = _RosLogHandler(self.get_logger())
         logging.getLogger('projection_server').addHandler(self._log_handler)
-        logging.getLogger('projection_server').setLevel(logging.INFO)
+        # Python's and rclpy's severities share their numbers (DEBUG 10 ... FATAL 50), so the
+        # package's records follow the node's --log-level.
+        logging.getLogger('projection_server').setLevel(
+            int(self.get_logger().get_effective_level()) or logging.INFO)
         projection.configure(
             bag_dir=bag_dir,
             workers=int(self.get_parameter('projection_workers').value),
