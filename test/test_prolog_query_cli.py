@@ -66,7 +66,8 @@ def test_incremental_mode_prints_as_it_goes_and_obeys_sigterm(server, client):
 
 
 def test_ctrl_c_cancels_a_projection_query_on_the_server(server, client):
-    query = ('make_projection(grasping, grasp_object, [(F, force, [2.1, 3.1, 4.1, 6.1, 8.1]),'
+    # 400 projections: still running when the signal comes, however fast the machine.
+    query = ('make_projection(grasping, grasp_object, [(F, force, range(2.1003, 6.1, 0.02)),'
              ' (P, position, [-0.012, 0.012])], TL)')
     proc = _start('--server', server, '--progress', '--timeout', '120', query)
     try:
@@ -100,7 +101,8 @@ def test_progress_shows_a_bar_of_the_projections(server):
 
 @pytest.mark.parametrize('progress', [False, True])
 def test_a_deadline_ends_the_command_with_its_own_exit_code(server, progress):
-    query = 'make_projection(grasping, grasp_object, [(F, force, [2.3, 4.3, 6.3])], TL)'
+    # 200 projections: far more than one second's worth, however fast the machine.
+    query = 'make_projection(grasping, grasp_object, [(F, force, range(2.3007, 6.3, 0.02))], TL)'
     started = time.monotonic()
     done = _run('--server', server, '--timeout', '120', '--deadline', '1',
                 *(['--progress'] if progress else []), query)
