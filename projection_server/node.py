@@ -13,6 +13,8 @@ each projection, and cancel (:mod:`projection_server.project_action`).
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import functools
 import json
 import logging
@@ -69,6 +71,18 @@ def _last_resort(callback):
                         pass
             return response
     return guarded
+
+
+@functools.cache
+def _libc():
+    return ctypes.CDLL(ctypes.util.find_library('c'))
+
+
+def _malloc_trim() -> None:
+    try:
+        _libc().malloc_trim(0)
+    except (AttributeError, OSError):   # not glibc
+        pass
 
 
 class _RosLogHandler(logging.Handler):
@@ -149,7 +163,8 @@ class ProjectionServerNode(Node):
         self.create_service(PrologFinish, '~/finish', self._on_finish, callback_group=group)
         self.create_service(Trigger, '~/ping', self._on_ping, callback_group=group)
         self.project_action = ProjectActionServer(self, self.queries, callback_group=group)
-        self.create_timer(1.0, self.queries.reap,
+        self._queries_since_trim = False
+        self.create_timer(1.0, self._housekeeping,
                           callback_group=MutuallyExclusiveCallbackGroup())
         self.get_logger().info(
             f'answering Prolog queries on {self.get_fully_qualified_name()}/query '
@@ -177,8 +192,19 @@ class ProjectionServerNode(Node):
             self.queries.limits = self._limits(changes)
         return SetParametersResult(successful=True)
 
+    def _housekeeping(self) -> None:
+        """Reap idle queries; when no engine is busy after queries ran, hand the memory
+        their engines freed back to the system."""
+        self.queries.reap()
+        if self._queries_since_trim and self.queries.stats()['engines'] == 0:
+            self._queries_since_trim = False
+            # glibc keeps freed memory in per-thread arenas; without this, a burst of
+            # queries from many threads would leave the node's RSS at its peak.
+            _malloc_trim()
+
     def _log_query(self, e: QueryEvent) -> None:
         """Errors at INFO, successes at DEBUG; the query text only as a bounded prefix."""
+        self._queries_since_trim = True
         text = e.text if len(e.text) <= LOG_TEXT_PREFIX else e.text[:LOG_TEXT_PREFIX] + '...'
         what = (f'query {e.id!r} ({e.mode}) {e.event} after {e.duration:.3f} s: '
                 + (f'error {e.kind}' if e.kind else f'{e.solutions} solution(s)'))
