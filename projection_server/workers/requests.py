@@ -15,16 +15,27 @@ from typing import TYPE_CHECKING
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.bag_store import touch
 
+from projection_server.simulation.errors import ProjectionError
+
 if TYPE_CHECKING:
-    from projection_server.simulation.errors import ProjectionError
     from projection_server.simulation.job import Job
     from projection_server.workers.bag_store import BagStore
 
-__all__ = ['KEEP_FINISHED', 'Request', 'Requests']
+__all__ = ['KEEP_FINISHED', 'Request', 'Requests', 'check_timeout']
 
 # Finished results kept for identical submissions (prefetched ones wait here to be asked
 # for); beyond this the oldest go, and their bags answer from the bag directory.
 KEEP_FINISHED = 256
+
+
+def check_timeout(timeout: object) -> None:
+    """A projection's time limit is a positive number of seconds.
+
+    Raises:
+        ProjectionError: kind ``invalid_parameters``.
+    """
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or timeout <= 0:
+        raise ProjectionError('invalid_parameters', f'timeout must be > 0 s: {timeout!r}')
 
 
 @dataclass

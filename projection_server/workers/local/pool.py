@@ -33,7 +33,7 @@ from projection_server.simulation.settings import load_settings, Settings
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.bag_store import BagStore, Retention
 from projection_server.workers.local.process import worker_main
-from projection_server.workers.requests import Request, Requests
+from projection_server.workers.requests import check_timeout, Request, Requests
 
 _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
@@ -102,8 +102,7 @@ class WorkerPool:
 
         The time limit counts from when a worker takes the job, not from submission.
         """
-        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or timeout <= 0:
-            raise ProjectionError('invalid_parameters', f'timeout must be > 0 s: {timeout!r}')
+        check_timeout(timeout)
         key = job.key(self.settings)
         with self._lock:
             if self._closed:

@@ -41,7 +41,7 @@ from projection_server.simulation.settings import load_settings, Settings
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.bag_store import BagStore, Retention
 from projection_server.workers.ray.actor import ProjectionActor
-from projection_server.workers.requests import Request, Requests
+from projection_server.workers.requests import check_timeout, Request, Requests
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
@@ -198,8 +198,7 @@ class RayBackend:
                owner: str | None = None) -> Future[ProjectionResult]:
         """Queue ``job``; its simulation may take ``timeout`` seconds of wall-clock time,
         counted from when an actor takes it."""
-        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or timeout <= 0:
-            raise ProjectionError('invalid_parameters', f'timeout must be > 0 s: {timeout!r}')
+        check_timeout(timeout)
         key = job.key(self.settings)
         with self._lock:
             if self._closed:
