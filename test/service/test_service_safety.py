@@ -250,17 +250,27 @@ def test_one_id_hammered_from_several_threads(call):
     engines_back_to(call, 0, within=2.0)
 
 
-def test_memory_and_threads_come_back_after_a_burst(call):
+def test_memory_and_threads_come_back_after_a_burst(server, call):
+    from projection_server.client import PrologClient
+
     def burst():
+        errors = []
+
         def client(i):
-            for j in range(8):
-                query(call, f'numlist(1, 200000, L), assertz(big(L)), length(L, N{i}_{j})')
-                query(call, 'between(1, 50, X)', mode=Q.ALL_SOLUTIONS)
+            try:
+                # Each client its own node and executor, as separate robot programs are.
+                with PrologClient(server) as prolog:
+                    for j in range(8):
+                        prolog.once(f'numlist(1, 200000, L), assertz(big(L)), length(L, N{i})')
+                        assert len(prolog.all('between(1, 50, X)')) == 50
+            except Exception as exc:  # noqa: BLE001 - reported below
+                errors.append(exc)
         threads = [threading.Thread(target=client, args=(i,)) for i in range(4)]
         for t in threads:
             t.start()
         for t in threads:
             t.join(120)
+        assert not errors, errors
         engines_back_to(call, 0, within=2.0)
         # The query threads' last steps, then the node's once-a-second housekeeping, which
         # hands freed memory back once no engine is busy.
