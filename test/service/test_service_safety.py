@@ -38,6 +38,19 @@ def engines_back_to(call, n, within):
     return time.monotonic() - start
 
 
+def finish_within_a_second(call, node, future, query_id):
+    """Finish the running query ``query_id``; its pending answer (``future``) must come
+    back ``cancelled`` within 1 s. Returns the seconds it took."""
+    import rclpy
+    start = time.monotonic()
+    assert call(PrologFinish, 'finish', PrologFinish.Request(id=query_id)).closed == 1
+    rclpy.spin_until_future_complete(node, future, timeout_sec=10)
+    stopped = time.monotonic() - start
+    assert future.done() and future.result().error_kind == 'cancelled'
+    assert stopped < 1.0, f'answered {stopped:.2f} s after finish'
+    return stopped
+
+
 @pytest.mark.parametrize('timeout', [1e10, float('inf'), float('nan'), -1.0, 1e300])
 def test_a_timeout_out_of_range_is_an_invalid_request(call, timeout):
     r = query(call, 'X = 1', timeout=timeout)
@@ -195,12 +208,7 @@ def test_finish_cancels_a_running_all_query(call, node):
     future = q.call_async(Q(mode=Q.ALL_SOLUTIONS, id='endless/1', query='repeat, fail',
                             timeout=30.0))
     time.sleep(1.0)
-    start = time.monotonic()
-    assert call(PrologFinish, 'finish', PrologFinish.Request(id='endless/*')).closed == 1
-    rclpy.spin_until_future_complete(node, future, timeout_sec=10)
-    stopped = time.monotonic() - start
-    assert future.done() and future.result().error_kind == 'cancelled'
-    assert stopped < 1.0, f'stopped after {stopped:.2f} s'
+    finish_within_a_second(call, node, future, 'endless/*')
     engines_back_to(call, 0, within=1.0)
     node.destroy_client(q)
 
@@ -295,12 +303,7 @@ def test_finish_stops_a_running_projection_query_within_a_second(call, node):
             '[(F, force, range(2.1101, 4.11, 0.01))], _), fail')
     future = q.call_async(Q(mode=Q.ONCE, id='projecting/1', query=text, timeout=120.0))
     time.sleep(4.0)  # the first projections are running
-    start = time.monotonic()
-    assert call(PrologFinish, 'finish', PrologFinish.Request(id='projecting/1')).closed == 1
-    rclpy.spin_until_future_complete(node, future, timeout_sec=10)
-    stopped = time.monotonic() - start
-    assert future.done() and future.result().error_kind == 'cancelled'
-    assert stopped < 1.0, f'answered {stopped:.2f} s after finish'
+    stopped = finish_within_a_second(call, node, future, 'projecting/1')
     freed = engines_back_to(call, 0, within=1.0)
     print(f'cancel answered after {stopped:.3f} s; engine free after {freed:.3f} s')
     node.destroy_client(q)
