@@ -228,6 +228,15 @@ test(sandbox_accepts_paper_query) :-
                 after(T2, T1), holds(F, T2), objOf(F, egg1) )).
 test(sandbox_accepts_with_timeline) :-
     safe_goal(with_timeline(timeline_1, holds(_, _))).
+% the readers are sandbox primitives; the goal of with_timeline/2 is still checked
+test(sandbox_readers_are_primitives) :-
+    forall(member(H, [holds(_, _, _), occurs(_, _, _), quantity(_, _), typeOf(_, _),
+                      timeline_fluent_intervals(_, _, _), current_timeline(_)]),
+           sandbox:safe_primitive(timeline:H)).
+test(sandbox_store_writers_not_readers, fail) :-
+    sandbox:safe_primitive(timeline:with_timeline(_, _)).
+test(sandbox_refuses_unsafe_goal_in_with_timeline, error(permission_error(_, _, _))) :-
+    safe_goal(with_timeline(timeline_1, shell(ls))).
 
 :- use_module(library(sandbox), [safe_goal/1]).
 
