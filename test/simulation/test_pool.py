@@ -100,6 +100,27 @@ def test_a_bag_does_not_depend_on_earlier_projections_of_its_worker(
         assert a.read() == b.read()
 
 
+def test_a_worker_warms_up_before_its_first_projection_and_keeps_nothing_of_it(
+        pool, make_scenario):
+    from projection_server.workers.warm_up import warm_up_job
+
+    pool.run(job(make_scenario, 5.0), timeout=60.0)
+    (warmed,) = pool.warm_ups
+    assert warmed['error'] is None and warmed['seconds'] > 0
+    warm = warm_up_job()
+    assert not pool.store.path(warm, warm.key(pool.settings)).exists()
+    assert not [p for p in pool.bag_dir.iterdir() if p.name.startswith('.tmp-')]
+
+
+def test_a_worker_that_cannot_warm_up_says_why_instead_of_failing(monkeypatch, make_scenario):
+    from projection_server.workers import warm_up
+
+    monkeypatch.setattr(warm_up, '_description', lambda: {
+        'scenario': make_scenario(), 'program': 'no_such_program', 'params': {}})
+    report = warm_up.warm_up(None, None)
+    assert 'no_such_program' in report['error']
+
+
 def test_engine_parameters_left_by_anything_before_do_not_reach_a_projection(
         make_scenario, pool, tmp_path):
     from projection_server.simulation.runner import run_projection, Simulator

@@ -8,7 +8,9 @@ must never be forked) that keeps one warm DIRECT-mode PyBullet client
 parent has a time limit. A worker that crashes or runs over its projection's time limit is
 terminated, its projection fails with kind ``worker_crashed`` or ``timeout``, and a new
 worker is started for the next projection. Workers start with the pool, so the first
-projection finds them warm. Each projection builds a fresh world. PyBullet
+projection finds them warm: each has run a throw-away projection
+(:mod:`projection_server.workers.warm_up`) before it takes a job. Each projection builds a
+fresh world. PyBullet
 keeps about 0.1 MB per world it has built, even after ``resetSimulation``, so a worker is
 replaced by a fresh one after ``max_projections`` projections (at once, not when the next
 projection comes).
@@ -62,7 +64,7 @@ class WorkerPool:
                  settings: Settings | None = None,
                  retention: Retention | Mapping[str, Any] | None = None,
                  start_method: str = 'forkserver', startup_timeout: float = 60.0,
-                 max_projections: int = 200):
+                 max_projections: int = 200, warm_up: bool = True):
         if not isinstance(workers, int) or workers < 1:
             raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
         self.store = BagStore(bag_dir, retention)
@@ -70,6 +72,7 @@ class WorkerPool:
         self.settings = settings if settings is not None else load_settings()
         self.startup_timeout = startup_timeout
         self.max_projections = max_projections
+        self.warm_up = warm_up
         self._context = multiprocessing.get_context(start_method)
         self._queue: queue.Queue[Request | None] = queue.Queue()
         self._requests = Requests(self.store)
@@ -90,6 +93,12 @@ class WorkerPool:
     @property
     def retention(self) -> Retention:
         return self.store.retention
+
+    @property
+    def warm_ups(self) -> list[dict[str, Any] | None]:
+        """What each running worker's warm-up took (``seconds``, ``error``); None where a
+        worker has not started yet or did not warm up."""
+        return [slot.warmed for slot in self._slots]
 
     @property
     def worker_pids(self) -> list[int | None]:
@@ -178,6 +187,7 @@ class _Slot:
         self._conn: Any = None
         self._projections = 0   # made by the running worker process
         self.request: Request | None = None
+        self.warmed: dict[str, Any] | None = None   # the running worker's warm-up
         self._thread = threading.Thread(target=self._loop, name=f'projection-worker-{index}',
                                         daemon=True)
         self._thread.start()
@@ -235,9 +245,12 @@ class _Slot:
                     self._projections += 1
                 finally:
                     self.request = None
-                if self._projections >= pool.max_projections and not pool._closed:
-                    self._stop()   # and start its successor while no one waits for it
-                    try:
+                if pool._closed:
+                    continue
+                if self._projections >= pool.max_projections:
+                    self._stop()
+                if self._process is None:   # replaced, killed or crashed: start (and warm
+                    try:                    # up) its successor while no one waits for it
                         self._ensure_worker()
                     except ProjectionError:
                         pass   # the next projection tries again and reports it
@@ -295,7 +308,8 @@ class _Slot:
         context = self._pool._context
         parent, child = context.Pipe()
         process = context.Process(target=worker_main,
-                                  args=(child, self._pool.settings.to_dict()),
+                                  args=(child, self._pool.settings.to_dict(),
+                                        self._pool.warm_up),
                                   name='projection-worker', daemon=True)
         process.start()
         child.close()
@@ -305,10 +319,15 @@ class _Slot:
         if not ok:
             self._kill()
             raise message
+        self.warmed = message['warm_up']
+        if self.warmed is not None and self.warmed['error'] is not None:
+            _log.warning('a projection worker could not warm up (its first projection '
+                         'pays that): %s', self.warmed['error'])
 
     def _kill(self) -> None:
         process, conn = self._process, self._conn
         self._process = self._conn = None
+        self.warmed = None
         if conn is not None:
             conn.close()
         if process is not None:

@@ -1,7 +1,9 @@
 """The worker process of the ``local`` backend: one warm simulator, commands over a pipe.
 
 Start-up pays once what every projection would otherwise pay again: imports, the PyBullet
-connection, message type registration and asset parsing. Each command is answered with
+connection, message type registration and asset parsing, and a throw-away projection for
+what only a first projection sets up (:mod:`projection_server.workers.warm_up`); the ready
+message says how long that took. Each command is answered with
 ``(result, ok)``; a projection's result is its timeline, made from the samples the worker
 has in memory (:mod:`projection_server.timeline.translate`).
 """
@@ -18,7 +20,7 @@ from projection_server.simulation.errors import ProjectionError
 __all__ = ['worker_main']
 
 
-def worker_main(conn: Any, settings: dict[str, Any]) -> None:
+def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
     """Entry point of a worker process: answers commands with ``(result, ok)``."""
     import signal
 
@@ -39,7 +41,9 @@ def worker_main(conn: Any, settings: dict[str, Any]) -> None:
         conn.send((ProjectionError('simulation_failed', f'worker start-up: {exc}'), False))
         return
     try:
-        conn.send(('ready', True))
+        from projection_server.workers.warm_up import warm_up
+
+        conn.send(({'warm_up': warm_up(simulator, parsed) if warm else None}, True))
         while True:
             try:
                 command, payload = conn.recv()

@@ -36,6 +36,7 @@ class ProjectionActor:
         os.close(devnull)
         self._error: ProjectionError | None = None
         self._simulator: Any = None
+        self._warm_up: dict[str, Any] | None = None
         try:
             from projection_server.simulation.job import code_version
             from projection_server.simulation.runner import Simulator
@@ -46,6 +47,10 @@ class ProjectionActor:
             self._simulator = Simulator()
         except Exception as exc:   # reported by ready(), like a local worker's start-up
             self._error = ProjectionError('simulation_failed', f'worker start-up: {exc}')
+        else:
+            from projection_server.workers.warm_up import warm_up
+
+            self._warm_up = warm_up(self._simulator, self._settings)
 
     def ready(self) -> tuple[Any, bool]:
         """Where this actor runs and which code it has, or why it could not start."""
@@ -54,7 +59,7 @@ class ProjectionActor:
         import ray
 
         return {'pid': os.getpid(), 'node': ray.get_runtime_context().get_node_id(),
-                'code_version': self._code}, True
+                'code_version': self._code, 'warm_up': self._warm_up}, True
 
     def project(self, job: Job, name: str) -> tuple[Any, bool]:
         """Run ``job`` into a bag called ``name``; ``({file: bytes}, timeline)`` of it."""
