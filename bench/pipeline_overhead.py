@@ -57,7 +57,7 @@ def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
     from projection_server.timeline import translate
 
     made = {}
-    original = translate.translate_messages
+    original = translate.translate_records
 
     def timed(*args):   # the translation's share of Simulator.run
         start = time.perf_counter()
@@ -65,13 +65,13 @@ def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
         made['translate'] = time.perf_counter() - start
         return made['timeline']
 
-    translate.translate_messages = timed
+    translate.translate_records = timed
     try:
         start = time.perf_counter()
         simulator.run(job, settings, bag)
         run = time.perf_counter() - start
     finally:
-        translate.translate_messages = original
+        translate.translate_records = original
     prolog = to_prolog(made['timeline'])
     return {'total': run + prolog, 'simulate+log': run - made['translate'],
             'translate': made['translate'], 'prolog': prolog}
@@ -93,16 +93,17 @@ def floor(client, job, settings, models: bool = False) -> float:
     steps = math.ceil(task.duration * settings.physics.rate_hz - 1e-9)
     control = settings.control.steps_per_control
     modelled = [physics.body(model.name).body_id for model in physics.models]
+    step_simulation, contact_points = client.stepSimulation, client.getContactPoints
     for step in range(steps):
         if step % control == 0:
             task.control(physics)
         if models:
             physics.step()
             continue
-        client.stepSimulation()
+        step_simulation()
         physics.step_count += 1
         for body in modelled:
-            client.getContactPoints(bodyA=body)
+            contact_points(bodyA=body)
     return time.perf_counter() - start
 
 
@@ -112,9 +113,10 @@ _bare_client = None
 def _bare_start() -> None:
     global _bare_client
     import pybullet
-    from pybullet_utils.bullet_client import BulletClient
 
-    _bare_client = BulletClient(connection_mode=pybullet.DIRECT)
+    from projection_server.simulation.physics import bound_client
+
+    _bare_client = bound_client(pybullet.DIRECT)
 
 
 def _bare_run(job, settings) -> float:
@@ -143,10 +145,10 @@ def main() -> int:
     args = parser.parse_args()
 
     import pybullet
-    from pybullet_utils.bullet_client import BulletClient
 
     from projection_server import prolog_bridge
     from projection_server.simulation.job import Job
+    from projection_server.simulation.physics import bound_client
     from projection_server.simulation.runner import Simulator
     from projection_server.simulation.settings import load_settings
 
@@ -157,7 +159,7 @@ def main() -> int:
             'pour': [Job.checked(scenario('pouring'), 'pour', p)
                      for p in POURS[:args.pours]]}
     simulator = Simulator()
-    bare = BulletClient(connection_mode=pybullet.DIRECT)
+    bare = bound_client(pybullet.DIRECT)
     results: dict[str, dict[str, list[float]]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for program, group in jobs.items():

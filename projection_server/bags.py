@@ -25,14 +25,26 @@ Topics (:data:`TOPICS`):
 Each topic records the QoS its publisher would offer (:func:`offered_qos`), as rosbag2
 does, so that ``ros2 bag play`` republishes ``/tf_static`` transient-local (a late RViz
 still gets the static frames) and everything reliable.
+
+Messages written every monitoring step have a layout that does not change from one sample
+to the next (the same frames, the same contact pairs, the same particles): a
+:class:`CdrTemplate` made once from a prototype message serializes them by writing the
+numbers into the prototype's CDR bytes, with the bytes rosbags' ``serialize_cdr`` gives.
+What does not depend on the messages (message definitions and hashes, each topic's QoS as
+YAML, the layout of ``metadata.yaml``) is computed once per process.
 """
 
 from __future__ import annotations
 
+import copy
+from fnmatch import fnmatchcase
 import functools
+from io import StringIO
 import os
 from pathlib import Path
-from typing import Any, TYPE_CHECKING
+import re
+import struct
+from typing import Any, Callable, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
 
@@ -43,6 +55,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     'BagWriter',
+    'CdrTemplate',
     'INTERFACE_PACKAGE',
     'LATCHED',
     'TOPICS',
@@ -120,14 +133,13 @@ class BagWriter:
     """
 
     def __init__(self, path: str | os.PathLike[str], storage: str = 'mcap'):
-        from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+        from rosbags.rosbag2 import StoragePlugin, WriterError
 
         plugin = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}[storage]
         self.path = Path(path)
         self._store = typestore()
         try:
-            self._writer = Writer(self.path, version=Writer.VERSION_LATEST,
-                                  storage_plugin=plugin)
+            self._writer = _writer_class()(self.path, version=9, storage_plugin=plugin)
         except WriterError as exc:
             raise ProjectionError('bag_error', str(exc)) from exc
         self._connections: dict[str, Any] = {}
@@ -147,13 +159,23 @@ class BagWriter:
     def write(self, topic: str, message: Any, t_ns: int) -> None:
         """Serialize ``message`` (a typestore dataclass) onto ``topic`` at ``t_ns``."""
         msgtype = message.__msgtype__
+        self.write_cdr(topic, msgtype, self._store.serialize_cdr(message, msgtype), t_ns)
+
+    def write_cdr(self, topic: str, msgtype: str, data: bytes, t_ns: int) -> None:
+        """Write ``data``, a ``msgtype`` message serialized as CDR, onto ``topic``."""
         connection = self._connections.get(topic)
         if connection is None:
+            msgdef, digest = _definition(msgtype)
             connection = self._writer.add_connection(
-                topic, msgtype, typestore=self._store,
+                topic, msgtype, msgdef=msgdef, rihs01=digest,
                 offered_qos_profiles=[offered_qos(topic)])
             self._connections[topic] = connection
-        self._writer.write(connection, int(t_ns), self._store.serialize_cdr(message, msgtype))
+        self._writer.write(connection, t_ns, data)
+
+    def template(self, msgtype: str, prototype: Any,
+                 variable: tuple[str, ...]) -> CdrTemplate:
+        """:class:`CdrTemplate` of ``prototype`` (kept per process: see :func:`template`)."""
+        return CdrTemplate(self._store, msgtype, prototype, variable)
 
     def new(self, msgtype: str, **fields: Any) -> Any:
         """A message of ``msgtype`` from the writer's typestore."""
@@ -162,6 +184,265 @@ class BagWriter:
     def type(self, msgtype: str) -> Any:
         """The message class of ``msgtype`` (for its constants)."""
         return self._store.types[msgtype]
+
+
+class CdrTemplate:
+    """Serializes messages that differ from a prototype only in some of their numbers.
+
+    ``variable`` are patterns (:func:`fnmatch.fnmatchcase`) of the dotted paths of the
+    numeric fields that vary, with sequence elements as indices (``transforms.0.header.
+    stamp.sec``; ``transforms.*.transform.*`` matches every number of every transform's
+    pose). Strings and sequence lengths are those of the prototype, and so are the numbers
+    no pattern matches. :meth:`pack` takes the varying numbers in the order of the message
+    definition and returns the CDR bytes (little endian, with its encapsulation header)
+    that rosbags' ``serialize_cdr`` gives of the message with those numbers: the message is
+    one ``struct`` format of constant byte runs and numbers.
+    """
+
+    def __init__(self, store: Typestore, msgtype: str, prototype: Any,
+                 variable: tuple[str, ...]):
+        self.msgtype = msgtype
+        self.variable = variable
+        self._store = store
+        self._prototype = copy.deepcopy(prototype)
+        self._tokens: list[tuple[str, Any]] = [('c', b'\x00\x01\x00\x00')]
+        self._pos = 0
+        self._message(prototype, msgtype, '')
+        fmt, consts, args, count = '<', {}, [], 0
+        run: list[bytes] = []
+        for kind, value in [*self._tokens, ('end', None)]:
+            if kind == 'c':
+                run.append(value)
+                continue
+            if run:
+                name = f'c{len(consts)}'
+                consts[name] = b''.join(run)
+                fmt += f'{len(consts[name])}s'
+                args.append(name)
+                run = []
+            if kind == 'v':
+                fmt += value
+                args.append(f'v[{count}]')
+                count += 1
+        consts['pack'] = struct.Struct(fmt).pack
+        self.count = count
+        self.size = struct.calcsize(fmt)
+        # One call of a compiled struct format, as rosbags' serializers are generated code.
+        self.pack: Callable[[Any], bytes] = eval(   # noqa: S307 (generated, no input)
+            f'lambda v: pack({", ".join(args)})', consts)
+        del self._tokens
+
+    def prototype(self) -> Any:
+        """A copy of the message the template was made of."""
+        return copy.deepcopy(self._prototype)
+
+    def _align(self, size: int) -> None:
+        pad = -self._pos % size
+        if pad:
+            self._tokens.append(('c', bytes(pad)))
+            self._pos += pad
+
+    def _number(self, basetype: str, value: Any, path: str) -> None:
+        code, size = _CDR_NUMBERS[basetype]
+        self._align(min(size, 8))
+        if any(fnmatchcase(path, pattern) for pattern in self.variable):
+            self._tokens.append(('v', code))
+        else:
+            self._tokens.append(('c', struct.pack('<' + code, value)))
+        self._pos += size
+
+    def _string(self, value: str) -> None:
+        raw = value.encode()
+        self._align(4)
+        self._tokens.append(('c', struct.pack('<I', len(raw) + 1) + raw + b'\x00'))
+        self._pos += 4 + len(raw) + 1
+
+    def _value(self, desc: Any, value: Any, path: str) -> None:
+        from rosbags.interfaces import Nodetype
+
+        kind, detail = desc
+        if kind == Nodetype.NAME:
+            self._message(value, detail, path + '.')
+        elif kind == Nodetype.BASE:
+            if detail[0] == 'string':
+                self._string(value)
+            else:
+                self._number(detail[0], value, path)
+        elif kind == Nodetype.ARRAY:
+            for index, item in enumerate(value):
+                self._value(detail[0], item, f'{path}.{index}')
+        else:   # a sequence: its length, then its elements
+            self._align(4)
+            self._tokens.append(('c', struct.pack('<I', len(value))))
+            self._pos += 4
+            for index, item in enumerate(value):
+                self._value(detail[0], item, f'{path}.{index}')
+
+    def _message(self, message: Any, msgtype: str, prefix: str) -> None:
+        for name, desc in self._store.get_msgdef(msgtype).fields:
+            self._value(desc, getattr(message, name), prefix + name)
+
+
+# Base type -> (struct code, size); the strings are handled apart.
+_CDR_NUMBERS = {
+    'bool': ('?', 1), 'byte': ('B', 1), 'char': ('B', 1), 'int8': ('b', 1),
+    'uint8': ('B', 1), 'int16': ('h', 2), 'uint16': ('H', 2), 'int32': ('i', 4),
+    'uint32': ('I', 4), 'int64': ('q', 8), 'uint64': ('Q', 8), 'float32': ('f', 4),
+    'float64': ('d', 8),
+}
+
+
+@functools.cache
+def _definition(msgtype: str) -> tuple[str, str]:
+    """``(message definition, RIHS01 hash)`` of ``msgtype``, as a bag's connection has it."""
+    store = typestore()
+    return store.generate_msgdef(msgtype, ros_version=2)[0], store.hash_rihs01(msgtype)
+
+
+@functools.cache
+def _qos_yaml(profiles: tuple[Any, ...]) -> str:
+    """The offered QoS profiles as rosbags writes them into a bag (version 9)."""
+    from rosbags.rosbag2.metadata import dump_qos_v9
+
+    return _dump_yaml(dump_qos_v9(list(profiles))).strip()
+
+
+def _dump_yaml(data: Any) -> str:
+    from ruamel.yaml import YAML
+
+    yaml = YAML(typ='safe')
+    yaml.default_flow_style = False
+    stream = StringIO()
+    yaml.dump(data, stream)
+    return stream.getvalue()
+
+
+# Integers that stand for a bag's numbers in a metadata.yaml layout: distinct, and written
+# by YAML as plain digits that occur nowhere else in the file.
+_SENTINELS = tuple(9_100_000_000_000_000_000 + 1_000_003 * i for i in range(64))
+_SENTINEL_FILE = 'x0sentinel0x.mcap'
+_PLAIN_FILE = re.compile(r'[A-Za-z0-9_][A-Za-z0-9_.-]*\.mcap')
+
+
+@functools.cache
+def _writer_class() -> type:
+    """rosbags' bag writer, with what it computes with ruamel YAML per connection and at
+    close (the topics' QoS, ``metadata.yaml``) computed once per process and topic layout
+    (the YAML text is the same, byte for byte)."""
+    from rosbags.interfaces import ConnectionExtRosbag2, MessageDefinition, \
+        MessageDefinitionFormat
+    from rosbags.interfaces import Connection
+    from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer, WriterError
+    from rosbags.rosbag2.metadata import dump_qos_v9
+
+    class _Writer(Writer):
+        def add_connection(self, topic: str, msgtype: str, *, msgdef: str, rihs01: str,
+                           offered_qos_profiles: Any = (), **_: Any) -> Any:
+            if not self.storage:
+                raise WriterError('Bag was not opened.')
+            if any(c.topic == topic for c in self.connections):
+                raise WriterError(f'Connection can only be added once: {topic}.')
+            profiles = list(offered_qos_profiles)
+            connection = Connection(
+                id=len(self.connections) + 1, topic=topic, msgtype=msgtype,
+                msgdef=MessageDefinition(MessageDefinitionFormat.MSG, msgdef), digest=rihs01,
+                msgcount=0, ext=ConnectionExtRosbag2(serialization_format='cdr',
+                                                     offered_qos_profiles=profiles),
+                owner=self)
+            if msgtype not in self.added_types:
+                self.storage.add_msgtype(connection)
+                self.added_types.add(msgtype)
+            self.storage.add_connection(connection, _qos_yaml(tuple(profiles)))
+            self.connections.append(connection)
+            self.counts[connection.id] = 0
+            return connection
+
+        def write(self, connection: Any, timestamp: int, data: bytes) -> None:
+            # The connections are this writer's own: no search of the list for them.
+            self.storage.write(connection, timestamp, data)
+            self.counts[connection.id] += 1
+            if timestamp < self.min_timestamp:
+                self.min_timestamp = timestamp
+            if timestamp > self.max_timestamp:
+                self.max_timestamp = timestamp
+
+        def close(self) -> None:
+            assert self.storage
+            if (self.compression_mode != CompressionMode.NONE or self.version != 9
+                    or self.storage_plugin != StoragePlugin.MCAP
+                    or len(self.connections) + 6 > len(_SENTINELS)):
+                super().close()
+                return
+            name = self.storage.path.name
+            if not _PLAIN_FILE.fullmatch(name):   # a name YAML might quote
+                super().close()
+                return
+            duration = max(0, self.max_timestamp - self.min_timestamp)
+            start = self.min_timestamp
+            count = sum(self.counts.values())
+            numbers = [duration, start, count, *(self.counts[c.id] for c in self.connections),
+                       start, duration, count]
+            layout = tuple((c.topic, c.msgtype, tuple(c.ext.offered_qos_profiles), c.digest)
+                           for c in self.connections)
+            whole, inner = _metadata_layout(layout, bool(self.custom_data) and
+                                            tuple(self.custom_data.items()))
+            self.storage.close(self.version, _fill(inner, numbers, name).strip())
+            self.storage = None
+            tmp = self.metapath.with_suffix('.yaml.tmp')
+            tmp.write_text(_fill(whole, numbers, name), 'utf8')
+            tmp.replace(self.metapath)
+
+    @functools.cache
+    def _metadata_layout(layout: tuple[Any, ...], custom: Any) -> tuple[list[str], list[str]]:
+        """metadata.yaml of a bag of these connections, split at its numbers and file name
+        (the whole file, and its inner mapping as the MCAP file embeds it)."""
+        n = len(layout)
+        s = _SENTINELS
+        info = {
+            'version': 9, 'storage_identifier': 'mcap', 'relative_file_paths': [_SENTINEL_FILE],
+            'duration': {'nanoseconds': s[0]}, 'starting_time': {'nanoseconds_since_epoch': s[1]},
+            'message_count': s[2],
+            'topics_with_message_count': [
+                {'topic_metadata': {'name': topic, 'type': msgtype,
+                                    'serialization_format': 'cdr',
+                                    'offered_qos_profiles': dump_qos_v9(list(profiles)),
+                                    'type_description_hash': digest},
+                 'message_count': s[3 + i]}
+                for i, (topic, msgtype, profiles, digest) in enumerate(layout)],
+            'compression_format': '', 'compression_mode': '',
+            'files': [{'path': _SENTINEL_FILE, 'starting_time': {
+                'nanoseconds_since_epoch': s[3 + n]}, 'duration': {'nanoseconds': s[4 + n]},
+                'message_count': s[5 + n]}],
+            'custom_data': dict(custom) if custom else None,
+            'ros_distro': 'rosbags',
+        }
+        return (_split(_dump_yaml({'rosbag2_bagfile_information': info})),
+                _split(_dump_yaml(info)))
+
+    return _Writer
+
+
+_PIECES = re.compile('|'.join([re.escape(_SENTINEL_FILE), *map(str, _SENTINELS)]))
+
+
+def _split(text: str) -> list[str]:
+    """``text`` as [text, marker, text, marker, ..., text]; a marker is a sentinel's index
+    (as a string) or '' for the file name."""
+    out, last = [], 0
+    for match in _PIECES.finditer(text):
+        marker = match.group()
+        out += [text[last:match.start()],
+                '' if marker == _SENTINEL_FILE else str(_SENTINELS.index(int(marker)))]
+        last = match.end()
+    return [*out, text[last:]]
+
+
+def _fill(pieces: list[str], numbers: list[int], name: str) -> str:
+    out = [pieces[0]]
+    for i in range(1, len(pieces), 2):
+        marker = pieces[i]
+        out += [str(numbers[int(marker)]) if marker else name, pieces[i + 1]]
+    return ''.join(out)
 
 
 def read_bag(path: str | os.PathLike[str],

@@ -14,173 +14,321 @@ markers topic with a ``SPHERE_LIST`` marker per fluid (namespace :data:`PARTICLE
 
 from __future__ import annotations
 
-from typing import Any, TYPE_CHECKING
+import functools
+from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.bags import TOPICS
+from projection_server.bags import CdrTemplate, TOPICS, typestore
 from projection_server.simulation.physics import ContactSample, Shape
 
 if TYPE_CHECKING:
     from projection_server.bags import BagWriter
     from projection_server.simulation.physics import Body, Physics
 
-__all__ = ['ContactAggregator', 'Monitor', 'PARTICLES_NS', 'WORLD_FRAME']
+__all__ = ['ContactAggregator', 'Monitor', 'PARTICLES_NS', 'Record', 'WORLD_FRAME']
 
 WORLD_FRAME = 'world'
 PARTICLES_NS = 'particles'
 _MSG = 'projection_interfaces/msg/'
 
 
+class Record(NamedTuple):
+    """What the monitor logged on one topic at one time, as plain data (the timeline is
+    made from these, :func:`projection_server.timeline.translate.translate_records`).
+
+    ``kind`` and ``data``:
+
+    * ``info``: the ``ProjectionInfo`` message;
+    * ``tf_static``, ``tf``: ``[(parent frame, child frame, (x, y, z), (x, y, z, w)), ...]``;
+    * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal z), ...]``;
+    * ``gripper``: ``(name, command, finger links)``;
+    * ``objects``: ``[(name, load, load limit, broken), ...]``;
+    * ``particles``: ``{fluid: positions (n, 3)}``.
+    """
+
+    kind: str
+    t_ns: int
+    data: Any
+
+
 class Monitor:
-    """Writes what a projection's timeline is made from, at the monitoring rate."""
+    """Writes what a projection's timeline is made from, at the monitoring rate, and keeps
+    it as :class:`Record` s in :attr:`records`.
+
+    The messages of every sample are serialized by :class:`~projection_server.bags.
+    CdrTemplate` s of their layout (kept per process), from the numbers of the sample.
+    """
 
     def __init__(self, physics: Physics, bag: BagWriter):
         self.physics = physics
         self.bag = bag
+        self.records: list[Record] = []
         self.contacts = ContactAggregator(physics)
         physics.step_hooks.append(self.contacts.add_step)
         # The robot's links hang off their URDF parents (a tf chain under the robot);
         # other multibodies' links, like their bases, off the world.
         self._parents = {body.name: _link_parents(physics, body)
                          for body in physics.bodies.values() if body.cls == 'robot'}
+        self._frames: list[tuple[Any, ...]] | None = None
+        self._tf: tuple[tuple[str, str], ...] = ()
+        client = physics.client
+        self._base_pose = client.getBasePositionAndOrientation
+        self._link_state = client.getLinkState
+        self._multiply = client.multiplyTransforms
+        self._invert = client.invertTransform
 
     def start(self, info: dict[str, str]) -> None:
         """t = 0: the projection's description, the static poses and the shapes."""
-        self.bag.write(TOPICS['info'], self.bag.new(
-            _MSG + 'ProjectionInfo', header=self._header(0), **info), 0)
-        static = [self._transform(0, b.name, *self.physics.pose(b.name))
+        bag = self.bag
+        message = bag.new(_MSG + 'ProjectionInfo', header=_header(0), **info)
+        bag.write(TOPICS['info'], message, 0)
+        self.records.append(Record('info', 0, message))
+        static = [(WORLD_FRAME, b.name, *self.physics.pose(b.name))
                   for b in self.physics.bodies.values() if b.static]
-        self.bag.write(TOPICS['tf_static'],
-                       self.bag.new('tf2_msgs/msg/TFMessage', transforms=static), 0)
+        bag.write(TOPICS['tf_static'], bag.new('tf2_msgs/msg/TFMessage', transforms=[
+            _transform(0, *frame) for frame in static]), 0)
+        self.records.append(Record('tf_static', 0, static))
         self._markers(0)
-        self._particles(0)
+        self._particles(0, 0, 0)
 
     def sample(self) -> None:
         """One monitoring step: poses, contacts, grippers and object states."""
-        physics, bag = self.physics, self.bag
+        physics, write, records = self.physics, self.bag.write_cdr, self.records
         t = physics.time_ns
+        sec, nanosec = divmod(t, 1_000_000_000)
         if physics.shapes_changed:
             self._markers(t)
-        transforms = []
-        for body in physics.bodies.values():
-            if body.static or body.group is not None:
-                continue
-            base = physics.pose(body.name)
-            transforms.append(self._transform(t, body.name, *base))
-            parents = self._parents.get(body.name)
-            if parents is None:
-                for link, link_name in body.links.items():
-                    transforms.append(self._transform(t, f'{body.name}/{link_name}',
-                                                      *physics.link_pose(body.name, link)))
+            self._frames = None
+        poses = self._poses()
+        values: list[Any] = []
+        for position, orientation in poses:
+            values += (sec, nanosec, *position, *orientation)
+        write(TOPICS['tf'], 'tf2_msgs/msg/TFMessage', _tf_template(self._tf).pack(values), t)
+        records.append(Record('tf', t, [(parent, child, *pose) for (parent, child), pose
+                                        in zip(self._tf, poses)]))
+        write(TOPICS['clock'], 'rosgraph_msgs/msg/Clock',
+              _clock_template().pack((sec, nanosec)), t)
+        self._particles(t, sec, nanosec)
+        contacts = self.contacts.take()
+        values = [sec, nanosec]
+        for c in contacts:
+            values += (*c.position, *c.normal, c.normal_force, *c.friction)
+        template = _contacts_template(tuple((c.body_a, c.link_a, c.body_b, c.link_b)
+                                            for c in contacts))
+        write(TOPICS['contacts'], template.msgtype, template.pack(values), t)
+        records.append(Record('contacts', t, [
+            (c.body_a, c.link_a, c.body_b, c.link_b, c.normal_force, float(c.normal[2]))
+            for c in contacts]))
+        for gripper in physics.grippers.values():
+            template = _gripper_template(gripper.name, gripper.command,
+                                         tuple(gripper.finger_links))
+            write(TOPICS['gripper'], template.msgtype, template.pack((
+                sec, nanosec, gripper.opening(), gripper.commanded_force,
+                gripper.measured_force())), t)
+            records.append(Record('gripper', t, (gripper.name, gripper.command,
+                                                 gripper.finger_links)))
+        states = [(model.name, *model.sample()) for model in physics.models]
+        values = [sec, nanosec]
+        for _, load, limit, broken in states:
+            values += (load, limit, broken)
+        template = _objects_template(tuple(state[0] for state in states))
+        write(TOPICS['objects'], template.msgtype, template.pack(values), t)
+        records.append(Record('objects', t, states))
+
+    # --- the sample's parts -------------------------------------------------------------
+    def _poses(self) -> list[tuple[Any, Any]]:
+        """World poses of the moving bodies and their links, the robot's links relative to
+        their parent links, in the order of ``self._tf`` (the frames, planned once)."""
+        if self._frames is None:
+            self._plan()
+        base_pose, link_state = self._base_pose, self._link_state
+        multiply, invert = self._multiply, self._invert
+        poses: list[tuple[Any, Any]] = []
+        for body_id, links, chain in self._frames:
+            base = base_pose(body_id)
+            poses.append(base)
+            if chain is None:
+                for link in links:
+                    state = link_state(body_id, link, computeForwardKinematics=True)
+                    poses.append((state[4], state[5]))
                 continue
             world = {-1: base}
-            for link in sorted(body.links):   # PyBullet numbers a parent before its child
-                world[link] = physics.link_pose(body.name, link)
-                parent = parents[link]
-                transforms.append(self._transform(
-                    t, _link_frame(body, link), *_relative(physics, world[parent], world[link]),
-                    parent=_link_frame(body, parent)))
-        bag.write(TOPICS['tf'], bag.new('tf2_msgs/msg/TFMessage', transforms=transforms), t)
-        bag.write(TOPICS['clock'], bag.new('rosgraph_msgs/msg/Clock', clock=self._stamp(t)), t)
-        self._particles(t)
-        contacts = [bag.new(
-            _MSG + 'Contact', body_a=c.body_a, link_a=c.link_a, body_b=c.body_b,
-            link_b=c.link_b, position=self._point(c.position), normal=self._vector(c.normal),
-            normal_force=c.normal_force, friction_force=self._vector(c.friction))
-            for c in self.contacts.take()]
-        bag.write(TOPICS['contacts'], bag.new(_MSG + 'ContactArray', header=self._header(t),
-                                              contacts=contacts), t)
-        for gripper in physics.grippers.values():
-            bag.write(TOPICS['gripper'], bag.new(
-                _MSG + 'GripperState', header=self._header(t), name=gripper.name,
-                command=gripper.command, opening=gripper.opening(),
-                commanded_force=gripper.commanded_force,
-                measured_force=gripper.measured_force(),
-                finger_links=gripper.finger_links), t)
-        states = []
-        for model in physics.models:
-            load, limit, broken = model.sample()
-            states.append(bag.new(_MSG + 'ObjectState', name=model.name, load=load,
-                                  load_limit=limit, broken=broken))
-        bag.write(TOPICS['objects'], bag.new(_MSG + 'ObjectStateArray',
-                                             header=self._header(t), objects=states), t)
+            for link, parent in chain:
+                state = link_state(body_id, link, computeForwardKinematics=True)
+                world[link] = pose = (state[4], state[5])
+                poses.append(multiply(*invert(*world[parent]), *pose))
+        return poses
 
-    # --- message parts ------------------------------------------------------------------
+    def _plan(self) -> None:
+        frames, tf = [], []
+        for body in self.physics.bodies.values():
+            if body.static or body.group is not None:
+                continue
+            tf.append((WORLD_FRAME, body.name))
+            parents = self._parents.get(body.name)
+            if parents is None:
+                links = list(body.links)
+                tf += [(WORLD_FRAME, f'{body.name}/{body.links[link]}') for link in links]
+                frames.append((body.body_id, links, None))
+                continue
+            chain = [(link, parents[link]) for link in sorted(body.links)]  # parents first
+            tf += [(_link_frame(body, parent), _link_frame(body, link))
+                   for link, parent in chain]
+            frames.append((body.body_id, [], chain))
+        self._frames, self._tf = frames, tuple(tf)
+
     def _markers(self, t: int) -> None:
         markers = []
         for body in self.physics.bodies.values():
             if body.shape is not None:
-                markers.append(self._marker(t, len(markers), body.name, body.shape,
-                                            (0.0, 0.0, 0.0)))
+                markers.append(_marker(t, len(markers), body.name, body.shape,
+                                       (0.0, 0.0, 0.0)))
             for link, shapes in body.link_shapes.items():
                 for shape, offset in shapes:
-                    markers.append(self._marker(t, len(markers), _link_frame(body, link),
-                                                shape, offset))
+                    markers.append(_marker(t, len(markers), _link_frame(body, link),
+                                           shape, offset))
         self.bag.write(TOPICS['markers'], self.bag.new(
             'visualization_msgs/msg/MarkerArray', markers=markers), t)
         self.physics.shapes_changed = False
 
-    def _particles(self, t: int) -> None:
+    def _particles(self, t: int, sec: int, nanosec: int) -> None:
         if not self.physics.fluids:
             return
-        markers = []
-        for index, fluid in enumerate(self.physics.fluids.values()):
-            points = [self._point(xyz) for xyz in self.physics.particle_positions(fluid.name)]
-            marker = self._marker(t, index, WORLD_FRAME,
-                                  Shape('sphere', (2 * fluid.radius,) * 3, fluid.color),
-                                  (0.0, 0.0, 0.0))
-            marker.ns, marker.type, marker.text = PARTICLES_NS, marker.SPHERE_LIST, fluid.name
-            marker.frame_locked, marker.points = False, points
-            markers.append(marker)
-        self.bag.write(TOPICS['markers'], self.bag.new(
-            'visualization_msgs/msg/MarkerArray', markers=markers), t)
+        fluids = tuple(self.physics.fluids.values())
+        positions = {fluid.name: self.physics.particle_positions(fluid.name)
+                     for fluid in fluids}
+        values: list[Any] = []
+        for fluid in fluids:
+            values += (sec, nanosec, *positions[fluid.name].ravel().tolist(), sec, nanosec)
+        template = _particles_template(tuple(
+            (fluid.name, fluid.radius, fluid.color, len(positions[fluid.name]))
+            for fluid in fluids))
+        self.bag.write_cdr(TOPICS['markers'], template.msgtype, template.pack(values), t)
+        self.records.append(Record('particles', t, positions))
 
-    def _marker(self, t: int, index: int, frame: str, shape: Shape, offset: Any) -> Any:
-        new = self.bag.new
-        marker = self.bag.type('visualization_msgs/msg/Marker')
-        kinds = {'box': marker.CUBE, 'cylinder': marker.CYLINDER, 'sphere': marker.SPHERE}
-        empty = np.zeros(0, dtype=np.uint8)
-        return marker(
-            header=self._header(t, frame), ns='bodies', id=index, type=kinds[shape.kind],
-            action=marker.ADD, pose=new('geometry_msgs/msg/Pose', position=self._point(offset),
-                               orientation=new('geometry_msgs/msg/Quaternion',
-                                               **dict(zip('xyzw', map(float,
-                                                                      shape.orientation))))),
-            scale=self._vector(shape.size),
-            color=new('std_msgs/msg/ColorRGBA', r=shape.color[0], g=shape.color[1],
-                      b=shape.color[2], a=shape.color[3]),
-            lifetime=new('builtin_interfaces/msg/Duration', sec=0, nanosec=0),
-            frame_locked=True, points=[], colors=[], texture_resource='',
-            texture=new('sensor_msgs/msg/CompressedImage', header=self._header(t),
-                        format='', data=empty),
-            uv_coordinates=[], text=frame, mesh_resource='',
-            mesh_file=new('visualization_msgs/msg/MeshFile', filename='', data=empty),
-            mesh_use_embedded_materials=False)
 
-    def _stamp(self, t: int) -> Any:
-        return self.bag.new('builtin_interfaces/msg/Time', sec=t // 1_000_000_000,
-                            nanosec=t % 1_000_000_000)
+# --- message layouts (per process) and parts -----------------------------------------------
+# Each template is made once per layout and process: a worker's projections of one scenario
+# share their frames, gripper states and most contact sets.
 
-    def _header(self, t: int, frame: str = WORLD_FRAME) -> Any:
-        return self.bag.new('std_msgs/msg/Header', stamp=self._stamp(t), frame_id=frame)
+def _template(msgtype: str, prototype: Any, variable: tuple[str, ...]) -> CdrTemplate:
+    return CdrTemplate(typestore(), msgtype, prototype, variable)
 
-    def _point(self, xyz: Any) -> Any:
-        return self.bag.new('geometry_msgs/msg/Point', x=float(xyz[0]), y=float(xyz[1]),
-                            z=float(xyz[2]))
 
-    def _vector(self, xyz: Any) -> Any:
-        return self.bag.new('geometry_msgs/msg/Vector3', x=float(xyz[0]), y=float(xyz[1]),
-                            z=float(xyz[2]))
+def _new(msgtype: str, **fields: Any) -> Any:
+    return typestore().types[msgtype](**fields)
 
-    def _transform(self, t: int, child: str, position: Any, orientation: Any,
-                   parent: str = WORLD_FRAME) -> Any:
-        new = self.bag.new
-        return new('geometry_msgs/msg/TransformStamped', header=self._header(t, parent),
-                   child_frame_id=child, transform=new(
-                       'geometry_msgs/msg/Transform', translation=self._vector(position),
-                       rotation=new('geometry_msgs/msg/Quaternion', x=orientation[0],
-                                    y=orientation[1], z=orientation[2], w=orientation[3])))
+
+@functools.cache
+def _clock_template() -> CdrTemplate:
+    return _template('rosgraph_msgs/msg/Clock',
+                     _new('rosgraph_msgs/msg/Clock', clock=_stamp(0)), ('clock.*',))
+
+
+@functools.lru_cache(maxsize=64)
+def _tf_template(frames: tuple[tuple[str, str], ...]) -> CdrTemplate:
+    transforms = [_transform(0, parent, child, (0.0,) * 3, (0.0, 0.0, 0.0, 1.0))
+                  for parent, child in frames]
+    return _template('tf2_msgs/msg/TFMessage',
+                     _new('tf2_msgs/msg/TFMessage', transforms=transforms),
+                     ('transforms.*.header.stamp.*', 'transforms.*.transform.*'))
+
+
+@functools.lru_cache(maxsize=1024)
+def _contacts_template(pairs: tuple[tuple[str, str, str, str], ...]) -> CdrTemplate:
+    zero = (0.0, 0.0, 0.0)
+    contacts = [_new(_MSG + 'Contact', body_a=a, link_a=la, body_b=b, link_b=lb,
+                     position=_point(zero), normal=_vector(zero), normal_force=0.0,
+                     friction_force=_vector(zero))
+                for a, la, b, lb in pairs]
+    return _template(_MSG + 'ContactArray',
+                     _new(_MSG + 'ContactArray', header=_header(0), contacts=contacts),
+                     ('header.stamp.*', 'contacts.*'))
+
+
+@functools.lru_cache(maxsize=64)
+def _gripper_template(name: str, command: str, fingers: tuple[str, ...]) -> CdrTemplate:
+    return _template(_MSG + 'GripperState', _new(
+        _MSG + 'GripperState', header=_header(0), name=name, command=command,
+        opening=0.0, commanded_force=0.0, measured_force=0.0, finger_links=list(fingers)),
+        ('header.stamp.*', 'opening', 'commanded_force', 'measured_force'))
+
+
+@functools.lru_cache(maxsize=64)
+def _objects_template(names: tuple[str, ...]) -> CdrTemplate:
+    states = [_new(_MSG + 'ObjectState', name=name, load=0.0, load_limit=0.0, broken=False)
+              for name in names]
+    return _template(_MSG + 'ObjectStateArray', _new(
+        _MSG + 'ObjectStateArray', header=_header(0), objects=states),
+        ('header.stamp.*', 'objects.*'))
+
+
+@functools.lru_cache(maxsize=16)
+def _particles_template(fluids: tuple[tuple[str, float, tuple[float, ...], int], ...]
+                        ) -> CdrTemplate:
+    """A ``MarkerArray`` of a ``SPHERE_LIST`` marker per fluid (name, radius, colour,
+    number of particles)."""
+    markers = []
+    for index, (name, radius, color, count) in enumerate(fluids):
+        marker = _marker(0, index, WORLD_FRAME,
+                         Shape('sphere', (2 * radius,) * 3, color), (0.0, 0.0, 0.0))
+        marker.ns, marker.type, marker.text = PARTICLES_NS, marker.SPHERE_LIST, name
+        marker.frame_locked = False
+        marker.points = [_point((0.0, 0.0, 0.0)) for _ in range(count)]
+        markers.append(marker)
+    return _template('visualization_msgs/msg/MarkerArray',
+                     _new('visualization_msgs/msg/MarkerArray', markers=markers),
+                     ('markers.*.header.stamp.*', 'markers.*.points.*',
+                      'markers.*.texture.header.stamp.*'))
+
+
+def _marker(t: int, index: int, frame: str, shape: Shape, offset: Any) -> Any:
+    marker = typestore().types['visualization_msgs/msg/Marker']
+    kinds = {'box': marker.CUBE, 'cylinder': marker.CYLINDER, 'sphere': marker.SPHERE}
+    empty = np.zeros(0, dtype=np.uint8)
+    return marker(
+        header=_header(t, frame), ns='bodies', id=index, type=kinds[shape.kind],
+        action=marker.ADD, pose=_new('geometry_msgs/msg/Pose', position=_point(offset),
+                                     orientation=_new('geometry_msgs/msg/Quaternion', **dict(
+                                         zip('xyzw', map(float, shape.orientation))))),
+        scale=_vector(shape.size),
+        color=_new('std_msgs/msg/ColorRGBA', r=shape.color[0], g=shape.color[1],
+                   b=shape.color[2], a=shape.color[3]),
+        lifetime=_new('builtin_interfaces/msg/Duration', sec=0, nanosec=0),
+        frame_locked=True, points=[], colors=[], texture_resource='',
+        texture=_new('sensor_msgs/msg/CompressedImage', header=_header(t),
+                     format='', data=empty),
+        uv_coordinates=[], text=frame, mesh_resource='',
+        mesh_file=_new('visualization_msgs/msg/MeshFile', filename='', data=empty),
+        mesh_use_embedded_materials=False)
+
+
+def _stamp(t: int) -> Any:
+    return _new('builtin_interfaces/msg/Time', sec=t // 1_000_000_000,
+                nanosec=t % 1_000_000_000)
+
+
+def _header(t: int, frame: str = WORLD_FRAME) -> Any:
+    return _new('std_msgs/msg/Header', stamp=_stamp(t), frame_id=frame)
+
+
+def _point(xyz: Any) -> Any:
+    return _new('geometry_msgs/msg/Point', x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2]))
+
+
+def _vector(xyz: Any) -> Any:
+    return _new('geometry_msgs/msg/Vector3', x=float(xyz[0]), y=float(xyz[1]),
+                z=float(xyz[2]))
+
+
+def _transform(t: int, parent: str, child: str, position: Any,
+               orientation: Any) -> Any:
+    return _new('geometry_msgs/msg/TransformStamped', header=_header(t, parent),
+                child_frame_id=child, transform=_new(
+                    'geometry_msgs/msg/Transform', translation=_vector(position),
+                    rotation=_new('geometry_msgs/msg/Quaternion', x=orientation[0],
+                                  y=orientation[1], z=orientation[2], w=orientation[3])))
 
 
 class ContactAggregator:
@@ -192,36 +340,32 @@ class ContactAggregator:
         # key -> [sum f, sum f*x, y, z, sum f*n x, y, z, sum friction x, y, z, points,
         #         sum x, y, z, sum n x, y, z]
         self._sums: dict[tuple[str, str, str, str], list[float]] = {}
+        self._version = -1   # of the physics' bodies that _bodies and _pairs are of
+        self._bodies: list[int] = []
+        self._pairs: dict[tuple[int, int, int, int], Any] = {}
+        self._contact_points: Any = None
 
     def add_step(self) -> None:
         """Add the contacts of the step just made."""
-        physics = self.physics
         self._steps += 1
-        fluids = physics.fluids
-        bodies = [b.body_id for b in physics.bodies.values()
-                  if not b.static and b.group is None]
-        queried = set(bodies)
-        name_of, link_name = physics.name_of, physics.link_name
-        sums = self._sums
-        for body in bodies:
-            a = name_of(body)
-            for point in physics.client.getContactPoints(bodyA=body):
-                other = point[2]
-                if other in queried and other < body:
-                    continue   # counted from the other body
-                b = name_of(other)
-                if b is None or b in fluids:
+        if self._version != self.physics.bodies_version:
+            self._replan()
+        pairs, sums, contact_points = self._pairs, self._sums, self._contact_points
+        for body in self._bodies:
+            for point in contact_points(bodyA=body):
+                pair_key = (body, point[3], point[2], point[4])
+                pair = pairs.get(pair_key, False)
+                if pair is False:
+                    pair = pairs[pair_key] = self._pair(*pair_key)
+                if pair is None:
                     continue
-                key_a = (a, link_name(body, point[3]))
-                key_b = (b, link_name(other, point[4]))
-                sign = 1.0 if key_a < key_b else -1.0
-                key = (*key_a, *key_b) if sign > 0 else (*key_b, *key_a)
+                key, sign, turned = pair
                 f = point[9]
                 (xa, ya, za), (xb, yb, zb) = point[5], point[6]
                 x, y, z = (xa + xb) / 2, (ya + yb) / 2, (za + zb) / 2
                 nx, ny, nz = (sign * v for v in point[7])
                 f1, (d1x, d1y, d1z), f2, (d2x, d2y, d2z) = point[10:14]
-                if other < body:
+                if turned:
                     # Asked from the later of a pair's bodies, PyBullet turns the normal round
                     # but not the friction directions.
                     f1, f2 = -f1, -f2
@@ -245,6 +389,31 @@ class ContactAggregator:
                 row[14] += nx
                 row[15] += ny
                 row[16] += nz
+
+    def _replan(self) -> None:
+        """The bodies to ask for contacts (of the world as it is now), once per change."""
+        physics = self.physics
+        self._bodies = [b.body_id for b in physics.bodies.values()
+                        if not b.static and b.group is None]
+        self._pairs = {}
+        self._contact_points = physics.client.getContactPoints
+        self._version = physics.bodies_version
+
+    def _pair(self, body: int, link: int, other: int, other_link: int
+              ) -> tuple[tuple[str, str, str, str], float, bool] | None:
+        """``(key, sign, turned)`` of the contacts of ``body``'s ``link`` with ``other``'s
+        ``other_link`` asked from ``body``; None if they are not counted from it."""
+        physics = self.physics
+        if other < body and other in self._bodies:
+            return None   # counted from the other body
+        a, b = physics.name_of(body), physics.name_of(other)
+        if b is None or b in physics.fluids:
+            return None
+        key_a = (a, physics.link_name(body, link))
+        key_b = (b, physics.link_name(other, other_link))
+        sign = 1.0 if key_a < key_b else -1.0
+        key = (*key_a, *key_b) if sign > 0 else (*key_b, *key_a)
+        return key, sign, other < body
 
     def take(self) -> list[ContactSample]:
         """The aggregated contacts since the last call (and the fluids' of this step),

@@ -8,6 +8,7 @@ the object models that run after every physics step.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import math
 from typing import Any, Callable, Protocol, TYPE_CHECKING
 
@@ -28,6 +29,7 @@ __all__ = [
     'Pad',
     'Physics',
     'Shape',
+    'bound_client',
 ]
 
 Vec3 = tuple[float, float, float]
@@ -223,6 +225,36 @@ class Gripper:
         return faces
 
 
+def bound_client(connection_mode: int) -> Any:
+    """A new ``BulletClient`` that binds each pybullet function to its physics client once.
+
+    ``BulletClient`` makes a new ``functools.partial`` on every attribute access; this one
+    keeps it, so that the calls of the step loop (about ten per physics step) cost a plain
+    attribute lookup.
+    """
+    return _bound_client_class()(connection_mode=connection_mode)
+
+
+@functools.cache
+def _bound_client_class() -> type:
+    from pybullet_utils.bullet_client import BulletClient
+
+    class _BoundClient(BulletClient):
+        def __getattr__(self, name: str) -> Any:
+            attribute = super().__getattr__(name)
+            setattr(self, name, attribute)
+            return attribute
+
+        def disconnect(self) -> None:
+            import pybullet
+
+            if self._client >= 0:
+                pybullet.disconnect(physicsClientId=self._client)
+                self._client = -1
+
+    return _BoundClient
+
+
 class Physics:
     """The simulation of one projection, with named access and queries."""
 
@@ -237,6 +269,7 @@ class Physics:
         self.containers: dict[str, Container] = {}
         self.shapes_changed = True   # markers must be (re)logged
         self.step_hooks: list[Callable[[], None]] = []   # run after every step's models
+        self.bodies_version = 0   # changes whenever a body or fluid is added or replaced
         self._names: dict[int, str] = {}
 
     # --- registry -----------------------------------------------------------------------
@@ -246,6 +279,7 @@ class Physics:
         self.bodies[body.name] = body
         self._names[body.body_id] = body.group or body.name
         self.shapes_changed = True
+        self.bodies_version += 1
         return body
 
     def add_fluid(self, fluid: Fluid) -> Fluid:
@@ -253,6 +287,7 @@ class Physics:
         if fluid.name in self.bodies or fluid.name in self.fluids:
             raise ProjectionError('invalid_scenario', f'body {fluid.name!r} exists already')
         self.fluids[fluid.name] = fluid
+        self.bodies_version += 1
         return fluid
 
     def replace_body(self, name: str, body_id: int, shape: Shape) -> Body:
@@ -264,6 +299,7 @@ class Physics:
         self.bodies[name] = new
         self._names[body_id] = name
         self.shapes_changed = True
+        self.bodies_version += 1
         return new
 
     def body(self, name: str) -> Body:

@@ -17,6 +17,7 @@ import numpy as np
 from projection_server.bags import BagWriter
 from projection_server.simulation.job import canonical_json, code_version
 from projection_server.simulation.monitor import Monitor
+from projection_server.simulation.physics import bound_client
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.world import build_world
@@ -35,13 +36,12 @@ class Simulator:
 
     def __init__(self) -> None:
         import pybullet
-        from pybullet_utils.bullet_client import BulletClient
 
         from projection_server.bags import typestore
         from projection_server.timeline import translate   # noqa: F401 (imported once here)
 
         typestore()   # message types are registered once per process
-        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        self.client = bound_client(pybullet.DIRECT)
 
     def run(self, job: Job, settings: Settings, bag_path: Path) -> dict[str, Any]:
         """Simulate ``job`` in a fresh world, log it into a new bag at ``bag_path`` and
@@ -51,7 +51,7 @@ class Simulator:
         samples every ``steps_per_log`` steps, from the first step until the program's
         duration.
         """
-        from projection_server.timeline.translate import translate_messages
+        from projection_server.timeline.translate import translate_records
 
         scenario = parse_scenario(job.scenario)
         program = get_program(job.program)
@@ -63,8 +63,7 @@ class Simulator:
         rate = settings.physics.rate_hz
         control, log = settings.control.steps_per_control, settings.control.steps_per_log
         steps = math.ceil(task.duration * rate - 1e-9)
-        with BagWriter(bag_path) as writer:
-            bag = _Recording(writer)
+        with BagWriter(bag_path) as bag:
             monitor = Monitor(physics, bag)
             monitor.start({
                 'job_key': key, 'scenario_name': scenario.name,
@@ -78,7 +77,7 @@ class Simulator:
                 physics.step()
                 if physics.step_count % log == 0:
                     monitor.sample()
-        return translate_messages(bag.messages, bag_path)
+        return translate_records(monitor.records, bag_path)
 
     def close(self) -> None:
         self.client.disconnect()
@@ -91,19 +90,3 @@ def run_projection(job: Job, settings: Settings, bag_path: Path) -> dict[str, An
         return simulator.run(job, settings, bag_path)
     finally:
         simulator.close()
-
-
-class _Recording:
-    """A bag writer that also keeps what it wrote, for the timeline."""
-
-    def __init__(self, writer: BagWriter):
-        self._writer = writer
-        self.new, self.type = writer.new, writer.type   # called per message: no __getattr__
-        self.messages: list[tuple[str, int, Any]] = []
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._writer, name)
-
-    def write(self, topic: str, message: Any, t_ns: int) -> None:
-        self._writer.write(topic, message, t_ns)
-        self.messages.append((topic, int(t_ns), message))

@@ -63,13 +63,13 @@ from dataclasses import dataclass, field
 import json
 import math
 import os
-from typing import Any, TYPE_CHECKING
+from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
 
 from projection_server.bags import read_bag, TOPICS
 from projection_server.simulation.errors import ProjectionError
-from projection_server.simulation.monitor import PARTICLES_NS
+from projection_server.simulation.monitor import PARTICLES_NS, Record
 from projection_server.simulation.pancake import REFERENCE_LINKS
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.settings import TimelineSettings
@@ -77,13 +77,25 @@ from projection_server.timeline import pouring, turning
 from projection_server.timeline.intervals import fluent_intervals, holds_at, Interval
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
+    from collections.abc import Iterable, Iterator
 
-__all__ = ['translate_bag', 'translate_messages']
+__all__ = ['translate_bag', 'translate_messages', 'translate_records']
 
 _TOPICS = [TOPICS[name] for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
                                      'objects', 'markers')]
-_SAMPLED = {TOPICS[name] for name in ('tf', 'contacts', 'gripper', 'objects')}
+_KINDS = {TOPICS[name]: name for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
+                                          'objects')}
+
+
+class _Gripper(NamedTuple):
+    command: str
+    finger_links: list[str]
+
+
+class _Object(NamedTuple):
+    load: float
+    load_limit: float
+    broken: bool
 
 
 @dataclass
@@ -93,9 +105,10 @@ class _Sample:
     t: float
     poses: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     moving: set[str] = field(default_factory=set)
-    contacts: list[Any] = field(default_factory=list)
-    grippers: dict[str, Any] = field(default_factory=dict)
-    objects: dict[str, Any] = field(default_factory=dict)
+    # (body_a, link_a, body_b, link_b, normal force, normal z)
+    contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
+    grippers: dict[str, _Gripper] = field(default_factory=dict)
+    objects: dict[str, _Object] = field(default_factory=dict)
     particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
 
 
@@ -119,9 +132,21 @@ def translate_messages(messages: Iterable[tuple[str, int, Any]],
     Raises:
         ProjectionError: kind ``bag_error`` if the messages are not a projection's.
     """
+    return translate_records(_records(messages), bag)
+
+
+def translate_records(records: Iterable[Record], bag: str | os.PathLike[str]
+                      ) -> dict[str, Any]:
+    """The timeline of a projection from what its monitor logged, as plain
+    :class:`~projection_server.simulation.monitor.Record` s (a worker's own projection:
+    the same timeline as its bag's); ``bag`` is the bag's path.
+
+    Raises:
+        ProjectionError: kind ``bag_error`` if the records are not a projection's.
+    """
     samples = _Samples()
-    for topic, t_ns, msg in messages:
-        samples.add(topic, t_ns, msg)
+    for record in records:
+        samples.add(*record)
     info, samples_ = samples.finish(bag)
     settings_json = json.loads(info.settings_json)
     timeline = _Timeline(samples_, TimelineSettings(**settings_json['timeline']))
@@ -141,8 +166,37 @@ def translate_messages(messages: Iterable[tuple[str, int, Any]],
     }
 
 
+def _records(messages: Iterable[tuple[str, int, Any]]) -> Iterator[Record]:
+    """The monitor's records of the messages of a bag."""
+    for topic, t_ns, msg in messages:
+        kind = _KINDS.get(topic)
+        if kind in ('tf', 'tf_static'):
+            yield Record(kind, t_ns, [
+                (tr.header.frame_id, tr.child_frame_id,
+                 (tr.transform.translation.x, tr.transform.translation.y,
+                  tr.transform.translation.z),
+                 (tr.transform.rotation.x, tr.transform.rotation.y, tr.transform.rotation.z,
+                  tr.transform.rotation.w)) for tr in msg.transforms])
+        elif kind == 'contacts':
+            yield Record(kind, t_ns, [(c.body_a, c.link_a, c.body_b, c.link_b, c.normal_force,
+                                       c.normal.z) for c in msg.contacts])
+        elif kind == 'gripper':
+            yield Record(kind, t_ns, (msg.name, msg.command, msg.finger_links))
+        elif kind == 'objects':
+            yield Record(kind, t_ns, [(o.name, o.load, o.load_limit, o.broken)
+                                      for o in msg.objects])
+        elif kind == 'info':
+            yield Record(kind, t_ns, msg)
+        elif topic == TOPICS['markers']:   # only the particles
+            particles = {marker.text: np.array([(q.x, q.y, q.z) for q in marker.points],
+                                               dtype=float).reshape(-1, 3)
+                         for marker in msg.markers if marker.ns == PARTICLES_NS}
+            if particles:
+                yield Record('particles', t_ns, particles)
+
+
 class _Samples:
-    """Collects the monitoring samples of a projection, one message at a time."""
+    """Collects the monitoring samples of a projection, one record at a time."""
 
     def __init__(self) -> None:
         self.info: Any = None
@@ -150,34 +204,30 @@ class _Samples:
         self.static: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.particles: dict[int, dict[str, np.ndarray]] = {}
 
-    def add(self, topic: str, t_ns: int, msg: Any) -> None:
-        if topic == TOPICS['info']:
-            self.info = msg
+    def add(self, kind: str, t_ns: int, data: Any) -> None:
+        if kind == 'info':
+            self.info = data
             return
-        if topic == TOPICS['tf_static']:
-            self.static.update(_poses(msg))
+        if kind == 'tf_static':
+            self.static.update(_poses(data))
             return
-        if topic == TOPICS['markers']:   # only the particles; they make no sample of their own
-            for marker in msg.markers:
-                if marker.ns == PARTICLES_NS:
-                    self.particles.setdefault(t_ns, {})[marker.text] = np.array(
-                        [(q.x, q.y, q.z) for q in marker.points], dtype=float).reshape(-1, 3)
-            return
-        if topic not in _SAMPLED:
+        if kind == 'particles':   # they make no sample of their own
+            self.particles.setdefault(t_ns, {}).update(data)
             return
         sample = self.by_time.get(t_ns)
         if sample is None:
             sample = self.by_time[t_ns] = _Sample(t_ns / 1e9)
-        if topic == TOPICS['tf']:
-            poses = _poses(msg)
+        if kind == 'tf':
+            poses = _poses(data)
             sample.poses.update(poses)
             sample.moving.update(name for name in poses if '/' not in name)
-        elif topic == TOPICS['contacts']:
-            sample.contacts = list(msg.contacts)
-        elif topic == TOPICS['gripper']:
-            sample.grippers[msg.name] = msg
-        elif topic == TOPICS['objects']:
-            sample.objects = {o.name: o for o in msg.objects}
+        elif kind == 'contacts':
+            sample.contacts = data
+        elif kind == 'gripper':
+            name, command, finger_links = data
+            sample.grippers[name] = _Gripper(command, finger_links)
+        elif kind == 'objects':
+            sample.objects = {name: _Object(*state) for name, *state in data}
 
     def finish(self, bag: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
         if self.info is None:
@@ -207,17 +257,18 @@ def _sorted_events(events: list[list[Any]]) -> list[list[Any]]:
                                                                               r[1]))]
 
 
-def _poses(msg: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """World poses of a TFMessage's frames; a frame whose parent is another frame of the
-    message (a robot's link chain, parents first) is composed with it."""
+def _poses(transforms: Iterable[tuple[str, str, Any, Any]]
+           ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World poses of the frames of a tf message (``(parent, child, position, quaternion)``
+    each); a frame whose parent is another frame of the message (a robot's link chain,
+    parents first) is composed with it."""
     out = {}
-    for tr in msg.transforms:
-        t, q = tr.transform.translation, tr.transform.rotation
-        position, rotation = np.array([t.x, t.y, t.z]), _matrix((q.x, q.y, q.z, q.w))
-        parent = out.get(tr.header.frame_id)
+    for parent_frame, child, t, q in transforms:
+        position, rotation = np.array(t), _matrix(q)
+        parent = out.get(parent_frame)
         if parent is not None:
             position, rotation = parent[0] + parent[1] @ position, parent[1] @ rotation
-        out[tr.child_frame_id] = (position, rotation)
+        out[child] = (position, rotation)
     return out
 
 
@@ -274,14 +325,14 @@ class _Timeline:
         for i, sample in enumerate(self.samples):
             touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
             held: set[str] = set()
-            for c in sample.contacts:
-                if c.normal_force < self.settings.contact_force_min or c.body_a == c.body_b:
+            for body_a, link_a, body_b, link_b, force, normal_z in sample.contacts:
+                if force < self.settings.contact_force_min or body_a == body_b:
                     continue
-                self._booleans[('contact', tuple(sorted((c.body_a, c.body_b))))][i] = True
-                touching[c.body_a].add((c.body_b, c.link_b))
-                touching[c.body_b].add((c.body_a, c.link_a))
-                for obj, support, up in ((c.body_a, c.body_b, c.normal.z),
-                                         (c.body_b, c.body_a, -c.normal.z)):
+                self._booleans[('contact', tuple(sorted((body_a, body_b))))][i] = True
+                touching[body_a].add((body_b, link_b))
+                touching[body_b].add((body_a, link_a))
+                for obj, support, up in ((body_a, body_b, normal_z),
+                                         (body_b, body_a, -normal_z)):
                     if support not in self.grippers and up >= cos_support:
                         self._booleans[('supported_by', (obj, support))][i] = True
             for name, gripper in sample.grippers.items():

@@ -1,10 +1,12 @@
-"""Bags: the project's messages round-trip through an MCAP bag."""
+"""Bags: the project's messages round-trip through an MCAP bag; the per-sample messages
+serialized from templates are rosbags' bytes."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from projection_server.bags import BagWriter, message_definitions, read_bag
+from projection_server.bags import BagWriter, message_definitions, read_bag, typestore
 from projection_server.simulation import ProjectionError
 
 
@@ -44,3 +46,169 @@ def test_reading_a_missing_bag_is_a_bag_error(tmp_path):
     with pytest.raises(ProjectionError) as info:
         list(read_bag(tmp_path / 'nothing'))
     assert info.value.kind == 'bag_error'
+
+
+# --- serialization from templates --------------------------------------------------------
+
+def _randomized(message, variable, rng, prefix=''):
+    """``message`` with each number at a path matching ``variable`` replaced by a random one
+    of its type (in place)."""
+    from fnmatch import fnmatchcase
+
+    from rosbags.interfaces import Nodetype
+
+    for name, (kind, detail) in typestore().get_msgdef(message.__msgtype__).fields:
+        value, path = getattr(message, name), prefix + name
+        if kind == Nodetype.NAME:
+            _randomized(value, variable, rng, path + '.')
+        elif kind == Nodetype.SEQUENCE and detail[0][0] == Nodetype.NAME:
+            for i, item in enumerate(value):
+                _randomized(item, variable, rng, f'{path}.{i}.')
+        elif kind != Nodetype.BASE or detail[0] == 'string' or not any(
+                fnmatchcase(path, p) for p in variable):
+            continue   # strings and what no pattern matches are the prototype's
+        elif detail[0] == 'float64':
+            setattr(message, name, float(rng.normal()))
+        elif detail[0] == 'int32':
+            setattr(message, name, int(rng.integers(-2**31, 2**31)))
+        elif detail[0] == 'uint32':
+            setattr(message, name, int(rng.integers(0, 2**32)))
+        elif detail[0] == 'bool':
+            setattr(message, name, bool(rng.integers(2)))
+        else:
+            raise AssertionError(f'no random {detail[0]}')
+    return message
+
+
+def _numbers(message, template_variable, prefix=''):
+    """The numbers of ``message`` at paths matching ``template_variable``, in order."""
+    from fnmatch import fnmatchcase
+
+    from rosbags.interfaces import Nodetype
+
+    out = []
+    for name, (kind, detail) in typestore().get_msgdef(message.__msgtype__).fields:
+        value, path = getattr(message, name), prefix + name
+        if kind == Nodetype.NAME:
+            out += _numbers(value, template_variable, path + '.')
+        elif kind == Nodetype.SEQUENCE and detail[0][0] == Nodetype.NAME:
+            for i, item in enumerate(value):
+                out += _numbers(item, template_variable, f'{path}.{i}.')
+        elif kind == Nodetype.BASE and detail[0] != 'string' and any(
+                fnmatchcase(path, p) for p in template_variable):
+            out.append(value)
+    return out
+
+
+def _layouts():
+    """Every layout the monitor writes per sample: (name, template, prototype)."""
+    from projection_server.simulation import monitor
+
+    frames = (('world', 'egg1'), ('world', 'pr2_robot'),
+              ('pr2_robot', 'pr2_robot/lift_link'), ('pr2_robot/lift_link', 'pr2_robot/f1'))
+    pairs = (('egg1', '', 'pr2_robot', 'r_finger'), ('egg1', '', 'table1', ''),
+             ('pr2_robot', 'l_finger', 'spatula', 'blade'))
+    yield 'tf', monitor._tf_template(frames)
+    yield 'clock', monitor._clock_template()
+    yield 'contacts (none)', monitor._contacts_template(())
+    yield 'contacts', monitor._contacts_template(pairs)
+    yield 'gripper', monitor._gripper_template('pr2_gripper', 'close', ('l_finger', 'r_f'))
+    yield 'objects', monitor._objects_template(('egg1', 'egg22'))
+    yield 'particles (300)', monitor._particles_template(
+        (('batter', 0.006, (0.95, 0.9, 0.6, 1.0), 300),))
+    yield 'particles (2 fluids)', monitor._particles_template(
+        (('batter', 0.006, (0.95, 0.9, 0.6, 1.0), 7), ('oil', 0.004, (1.0, 1.0, 0.0, 0.5), 0)))
+
+
+@pytest.mark.parametrize('name', [name for name, _ in _layouts()])
+def test_a_template_gives_the_bytes_of_rosbags_serializer(name):
+    """Each per-sample message of the monitor, a fixed and a variable-size one, serialized
+    from its template with random numbers is byte for byte rosbags' serialization of the
+    message with those numbers."""
+    template = dict(_layouts())[name]
+    store = typestore()
+    rng = np.random.default_rng(len(name))
+    for _ in range(5):
+        message = _randomized(template.prototype(), template.variable, rng)
+        expected = bytes(store.serialize_cdr(message, template.msgtype))
+        values = _numbers(message, template.variable)
+        assert len(values) == template.count
+        assert template.pack(values) == expected
+        decoded = store.deserialize_cdr(template.pack(values), template.msgtype)
+        assert _numbers(decoded, template.variable) == values
+
+
+def test_a_bags_files_are_those_rosbags_writes(tmp_path):
+    """The writer's cached QoS and metadata.yaml layout give rosbags' own files."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from projection_server.bags import _definition, offered_qos
+
+    store = typestore()
+    messages = []
+    for i, (topic, msgtype) in enumerate([('/projection/info', 'ProjectionInfo'),
+                                          ('/projection/objects', 'ObjectStateArray')] * 3):
+        message = store.types[f'projection_interfaces/msg/{msgtype}'](
+            **_defaults(store, f'projection_interfaces/msg/{msgtype}'))
+        messages.append((topic, message, 1_000 * i + 7))
+    ours, theirs = tmp_path / 'ours' / 'bag', tmp_path / 'theirs' / 'bag'
+    ours.parent.mkdir()
+    theirs.parent.mkdir()
+    with BagWriter(ours) as bag:
+        for topic, message, t in messages:
+            bag.write(topic, message, t)
+    with Writer(theirs, version=9, storage_plugin=StoragePlugin.MCAP) as bag:
+        connections = {}
+        for topic, message, t in messages:
+            if topic not in connections:
+                connections[topic] = bag.add_connection(
+                    topic, message.__msgtype__, typestore=store,
+                    offered_qos_profiles=[offered_qos(topic)])
+            bag.write(connections[topic], t, store.serialize_cdr(message, message.__msgtype__))
+    assert _definition('projection_interfaces/msg/ObjectStateArray')[1].startswith('RIHS01_')
+    metadata = (ours / 'metadata.yaml').read_text()
+    assert metadata == (theirs / 'metadata.yaml').read_text()
+    assert 'message_count: 6' in metadata and 'nanoseconds_since_epoch: 7' in metadata
+    assert (ours / 'bag.mcap').read_bytes() == (theirs / 'bag.mcap').read_bytes()
+
+
+def _defaults(store, msgtype):
+    from rosbags.interfaces import Nodetype
+
+    fields = {}
+    for name, (kind, detail) in store.get_msgdef(msgtype).fields:
+        if kind == Nodetype.NAME:
+            fields[name] = store.types[detail](**_defaults(store, detail))
+        elif kind == Nodetype.SEQUENCE:
+            fields[name] = []
+        elif detail[0] == 'string':
+            fields[name] = f'{name} text'
+        elif detail[0] == 'bool':
+            fields[name] = True
+        else:
+            fields[name] = 3 if 'int' in detail[0] else 2.5
+    return fields
+
+
+def test_a_projections_bag_holds_rosbags_bytes_and_its_timeline(tmp_path, make_scenario):
+    """Every message of a real projection's bag is rosbags' serialization of itself, and
+    the bag translates to the timeline the projection made from its samples in memory."""
+    from projection_server.simulation import load_settings
+    from projection_server.simulation.job import Job
+    from projection_server.simulation.runner import run_projection
+    from projection_server.timeline.translate import translate_bag
+
+    from rosbags.highlevel import AnyReader
+
+    job = Job.checked(make_scenario(), 'grasp_object', {'force': 11.0, 'position': 0.02})
+    timeline = run_projection(job, load_settings(), tmp_path / 'grasp')
+    store = typestore()
+    counts: dict[str, int] = {}
+    with AnyReader([tmp_path / 'grasp'], default_typestore=store) as reader:
+        for connection, _, raw in reader.messages():
+            message = reader.deserialize(raw, connection.msgtype)
+            assert bytes(raw) == bytes(store.serialize_cdr(message, connection.msgtype))
+            counts[connection.topic] = counts.get(connection.topic, 0) + 1
+    assert counts['/tf'] == counts['/clock'] == counts['/projection/contacts'] > 200
+    assert translate_bag(tmp_path / 'grasp') == timeline
+    assert 'break' in [event[0] for event in timeline['events']]
