@@ -317,6 +317,10 @@ def _dump_yaml(data: Any) -> str:
     return stream.getvalue()
 
 
+# An MCAP message record's opcode and length, then the message header: channel, sequence,
+# log time, publish time.
+_MCAP_MESSAGE = struct.Struct('<BQHIQQ')
+
 # Integers that stand for a bag's numbers in a metadata.yaml layout: distinct, and written
 # by YAML as plain digits that occur nowhere else in the file.
 _SENTINELS = tuple(9_100_000_000_000_000_000 + 1_000_003 * i for i in range(64))
@@ -334,8 +338,28 @@ def _writer_class() -> type:
     from rosbags.interfaces import Connection
     from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer, WriterError
     from rosbags.rosbag2.metadata import dump_qos_v9
+    from rosbags.rosbag2.storage_mcap import McapWriter
+
+    class _Mcap(McapWriter):
+        def write(self, connection: Any, timestamp: int, data: bytes) -> None:
+            # rosbags' message record, packed in one call instead of a BytesIO per message.
+            self.message_start_time = min(timestamp, self.message_start_time)
+            self.message_end_time = max(timestamp, self.message_end_time)
+            self.channel_stats[connection.id] += 1
+            chunk = self.chunk
+            chunk.message_start_time = min(timestamp, chunk.message_start_time)
+            chunk.message_end_time = max(timestamp, chunk.message_end_time)
+            bio = chunk.bio
+            chunk.msgs[connection.id].append((timestamp, bio.tell()))
+            bio.write(_MCAP_MESSAGE.pack(0x05, 22 + len(data), connection.id, 0, timestamp,
+                                         timestamp))
+            bio.write(data)
+            if bio.tell() > 2**20:
+                self.close_chunk()
 
     class _Writer(Writer):
+        STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _Mcap}
+
         def add_connection(self, topic: str, msgtype: str, *, msgdef: str, rihs01: str,
                            offered_qos_profiles: Any = (), **_: Any) -> Any:
             if not self.storage:

@@ -103,7 +103,7 @@ class _Sample:
     """What one monitoring step logged."""
 
     t: float
-    poses: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    poses: _Poses = field(default_factory=lambda: _Poses())
     moving: set[str] = field(default_factory=set)
     # (body_a, link_a, body_b, link_b, normal force, normal z)
     contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
@@ -218,9 +218,8 @@ class _Samples:
         if sample is None:
             sample = self.by_time[t_ns] = _Sample(t_ns / 1e9)
         if kind == 'tf':
-            poses = _poses(data)
-            sample.poses.update(poses)
-            sample.moving.update(name for name in poses if '/' not in name)
+            sample.poses.add(data)
+            sample.moving.update(child for _, child, _, _ in data if '/' not in child)
         elif kind == 'contacts':
             sample.contacts = data
         elif kind == 'gripper':
@@ -260,16 +259,61 @@ def _sorted_events(events: list[list[Any]]) -> list[list[Any]]:
 def _poses(transforms: Iterable[tuple[str, str, Any, Any]]
            ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """World poses of the frames of a tf message (``(parent, child, position, quaternion)``
-    each); a frame whose parent is another frame of the message (a robot's link chain,
-    parents first) is composed with it."""
-    out = {}
-    for parent_frame, child, t, q in transforms:
+    each): see :class:`_Poses`."""
+    poses = _Poses()
+    poses.add(transforms)
+    return dict(poses.items())
+
+
+class _Poses:
+    """World poses ``(position, rotation matrix)`` of a sample's frames by name, each
+    composed when first asked for (most frames of a robot's link chain never are).
+
+    A frame whose parent is a frame before it in the same tf message (a robot's link chain,
+    parents first) is composed with it; other parents are the world.
+    """
+
+    __slots__ = ('_frames',)
+
+    def __init__(self) -> None:
+        # name -> [parent's entry or None, position, quaternion, pose once composed]
+        self._frames: dict[str, list[Any]] = {}
+
+    def add(self, transforms: Iterable[tuple[str, str, Any, Any]]) -> None:
+        """The frames of one tf message."""
+        entries: dict[str, list[Any]] = {}
+        for parent, child, position, quaternion in transforms:
+            entries[child] = [entries.get(parent), position, quaternion, None]
+        self._frames.update(entries)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._frames
+
+    def __getitem__(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        return _composed(self._frames[name])
+
+    def get(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+        entry = self._frames.get(name)
+        return None if entry is None else _composed(entry)
+
+    def setdefault(self, name: str, pose: tuple[np.ndarray, np.ndarray]) -> None:
+        if name not in self._frames:
+            self._frames[name] = [None, None, None, pose]
+
+    def items(self) -> Iterator[tuple[str, tuple[np.ndarray, np.ndarray]]]:
+        return ((name, _composed(entry)) for name, entry in self._frames.items())
+
+
+def _composed(entry: list[Any]) -> tuple[np.ndarray, np.ndarray]:
+    pose = entry[3]
+    if pose is None:
+        parent, t, q = entry[0], entry[1], entry[2]
         position, rotation = np.array(t), _matrix(q)
-        parent = out.get(parent_frame)
         if parent is not None:
+            parent = _composed(parent)
             position, rotation = parent[0] + parent[1] @ position, parent[1] @ rotation
-        out[child] = (position, rotation)
-    return out
+        pose = entry[3] = (position, rotation)
+    return pose
 
 
 def _upside_down(sample: _Sample, body: str) -> bool:
