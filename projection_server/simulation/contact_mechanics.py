@@ -65,12 +65,15 @@ def curvature_load(force: float, semi_axes: tuple[float, float, float],
     ``point`` is projected onto the ellipsoid first (Bullet reports contact points on the
     collision margin). Plain float arithmetic: it runs for every contact in every step.
     """
-    a = semi_axes
-    scale = math.sqrt(sum((x / s) ** 2 for x, s in zip(point, a)))
+    a0, a1, a2 = semi_axes
+    x0, x1, x2 = point
+    # Sums written out (the same additions, in the same order, as sum() of the terms).
+    scale = math.sqrt((x0 / a0) ** 2 + (x1 / a1) ** 2 + (x2 / a2) ** 2)
     if scale == 0.0:
         return force
-    radius = a[0] * a[1] * a[2] * sum((x / scale) ** 2 / s ** 4 for x, s in zip(point, a))
-    return force * reference_radius(semi_axes) / radius
+    radius = a0 * a1 * a2 * ((x0 / scale) ** 2 / a0 ** 4 + (x1 / scale) ** 2 / a1 ** 4
+                             + (x2 / scale) ** 2 / a2 ** 4)
+    return force * (a0 * a2 / a1) / radius
 
 
 def support_point(semi_axes: tuple[float, float, float], rot: np.ndarray, pos: np.ndarray,

@@ -150,13 +150,15 @@ class EggShell:
         """Equivalent load of a pad's contact; None if the pad is not over the shell."""
         state = client.getLinkState(key[0], key[1], computeForwardKinematics=True)
         inverse = _conjugate(state[5])
-        offset = _rotate(inverse, tuple(p - q for p, q in zip(pos, state[4])))
+        (px, py, pz), (qx, qy, qz) = pos, state[4]
+        offset = _rotate(inverse, (px - qx, py - qy, pz - qz))
         turn = _multiply(inverse, orn)
         cached = self._cache.get(key)
         if cached is not None and self._cache_on:
-            force0, offset0, turn0, load0 = cached
+            force0, (ox, oy, oz), turn0, load0 = cached
             if (abs(force - force0) <= CACHE_FORCE * force0
-                    and max(abs(a - b) for a, b in zip(offset, offset0)) <= CACHE_SHIFT
+                    and max(abs(offset[0] - ox), abs(offset[1] - oy), abs(offset[2] - oz))
+                    <= CACHE_SHIFT
                     and _angle(turn, turn0) <= CACHE_TURN):
                 return load0 * force / force0
         origin = np.asarray(state[4])
@@ -189,11 +191,20 @@ def _multiply(a: Quat, b: Quat) -> Quat:
 
 
 def _rotate(q: Quat, v: tuple[float, float, float]) -> tuple[float, float, float]:
-    x, y, z, _ = _multiply(_multiply(q, (v[0], v[1], v[2], 0.0)), _conjugate(q))
-    return (x, y, z)
+    """``q * (v, 0) * conj(q)``, written out: :func:`_multiply` twice, term for term."""
+    ax, ay, az, aw = q
+    bx, by, bz = v
+    bw = 0.0
+    mx = aw * bx + ax * bw + ay * bz - az * by
+    my = aw * by - ax * bz + ay * bw + az * bx
+    mz = aw * bz + ax * by - ay * bx + az * bw
+    mw = aw * bw - ax * bx - ay * by - az * bz
+    cx, cy, cz, cw = -ax, -ay, -az, aw
+    return (mw * cx + mx * cw + my * cz - mz * cy, mw * cy - mx * cz + my * cw + mz * cx,
+            mw * cz + mx * cy - my * cx + mz * cw)
 
 
 def _angle(a: Quat, b: Quat) -> float:
     """Angle [rad] of the rotation between two unit quaternions."""
-    dot = abs(sum(p * q for p, q in zip(a, b)))
+    dot = abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3])
     return 2.0 * math.acos(min(1.0, dot))
