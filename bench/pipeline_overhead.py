@@ -67,24 +67,26 @@ def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
 
     translate.translate_records = timed
     try:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         simulator.run(job, settings, bag)
         run = time.perf_counter() - start
+        prolog = to_prolog(made['timeline'])
+        cpu = time.process_time() - cpu
     finally:
         translate.translate_records = original
-    prolog = to_prolog(made['timeline'])
     return {'total': run + prolog, 'simulate+log': run - made['translate'],
-            'translate': made['translate'], 'prolog': prolog}
+            'translate': made['translate'], 'prolog': prolog, 'cpu': cpu}
 
 
-def floor(client, job, settings, models: bool = False) -> float:
-    """Bare stepping of the job's world and program [s]; with ``models``, each step also
-    runs the object models (the egg's shell), still without monitoring or bag."""
+def floor(client, job, settings, models: bool = False) -> tuple[float, float]:
+    """Bare stepping of the job's world and program: (wall, CPU seconds of this process);
+    with ``models``, each step also runs the object models (the egg's shell), still without
+    monitoring or bag."""
     from projection_server.simulation.programs import get as get_program
     from projection_server.simulation.scenario import parse_scenario
     from projection_server.simulation.world import build_world
 
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     settings = job.settings(settings)   # the program's and the job's own, as a worker has them
     parsed = parse_scenario(job.scenario)
     physics = build_world(client, parsed, settings)
@@ -104,7 +106,7 @@ def floor(client, job, settings, models: bool = False) -> float:
         physics.step_count += 1
         for body in modelled:
             contact_points(bodyA=body)
-    return time.perf_counter() - start
+    return time.perf_counter() - start, time.process_time() - cpu
 
 
 _bare_client = None
@@ -120,7 +122,7 @@ def _bare_start() -> None:
 
 
 def _bare_run(job, settings) -> float:
-    return floor(_bare_client, job, settings)
+    return floor(_bare_client, job, settings)[0]
 
 
 def parallel_floor(jobs, settings, workers: int) -> float:
@@ -174,8 +176,10 @@ def main() -> int:
                     row = results.setdefault(program, {})
                     for name, value in parts.items():
                         row.setdefault(name, []).append(value)
-                    row.setdefault('floor', []).append(floor(bare, job, settings))
-                    row.setdefault('models', []).append(floor(bare, job, settings, True))
+                    for name, models in (('floor', False), ('models', True)):
+                        wall, cpu = floor(bare, job, settings, models)
+                        row.setdefault(name, []).append(wall)
+                        row.setdefault(f'{name} cpu', []).append(cpu)
     simulator.close()
     bare.disconnect()
 
@@ -189,13 +193,17 @@ def main() -> int:
     for program, row in results.items():
         med = {name: statistics.median(values) for name, values in row.items()}
         ratio = statistics.median(t / f for t, f in zip(row['total'], row['floor']))
+        cpu_ratio = statistics.median(t / f for t, f in zip(row['cpu'], row['floor cpu']))
         engine = jobs[program][0].settings(settings).physics
         print(f'  {program} ({engine.rate_hz} Hz, {engine.solver_iterations} solver '
               f'iterations): pipeline {med["total"] * 1e3:7.1f} ms (simulate+log '
               f'{med["simulate+log"] * 1e3:.1f}, translate {med["translate"] * 1e3:.1f}, '
               f'prolog {med["prolog"] * 1e3:.1f}), floor {med["floor"] * 1e3:7.1f} ms, '
               f'ratio {ratio:.2f}x (median of {len(row["total"])} pairs); stepping with the '
-              f'object models {med["models"] * 1e3:.1f} ms')
+              f'object models {med["models"] * 1e3:.1f} ms; CPU time of this process: '
+              f'pipeline {med["cpu"] * 1e3:.1f} ms, floor {med["floor cpu"] * 1e3:.1f} ms, '
+              f'with the object models {med["models cpu"] * 1e3:.1f} ms, ratio '
+              f'{cpu_ratio:.2f}x')
     return 0
 
 

@@ -74,7 +74,7 @@ class Monitor:
         self._tf: tuple[tuple[str, str], ...] = ()
         client = physics.client
         self._base_pose = client.getBasePositionAndOrientation
-        self._link_state = client.getLinkState
+        self._link_states = client.getLinkStates
         self._multiply = client.multiplyTransforms
         self._invert = client.invertTransform
 
@@ -123,9 +123,9 @@ class Monitor:
         for gripper in physics.grippers.values():
             template = _gripper_template(gripper.name, gripper.command,
                                          tuple(gripper.finger_links))
+            opening, measured_force = gripper.state()
             write(TOPICS['gripper'], template.msgtype, template.pack((
-                sec, nanosec, gripper.opening(), gripper.commanded_force,
-                gripper.measured_force())), t)
+                sec, nanosec, opening, gripper.commanded_force, measured_force)), t)
             records.append(Record('gripper', t, (gripper.name, gripper.command,
                                                  gripper.finger_links)))
         states = [(model.name, *model.sample()) for model in physics.models]
@@ -142,20 +142,20 @@ class Monitor:
         their parent links, in the order of ``self._tf`` (the frames, planned once)."""
         if self._frames is None:
             self._plan()
-        base_pose, link_state = self._base_pose, self._link_state
+        base_pose, link_states = self._base_pose, self._link_states
         multiply, invert = self._multiply, self._invert
         poses: list[tuple[Any, Any]] = []
         for body_id, links, chain in self._frames:
             base = base_pose(body_id)
             poses.append(base)
+            if not links:
+                continue
+            states = link_states(body_id, links, computeForwardKinematics=True)
             if chain is None:
-                for link in links:
-                    state = link_state(body_id, link, computeForwardKinematics=True)
-                    poses.append((state[4], state[5]))
+                poses += [(state[4], state[5]) for state in states]
                 continue
             world = {-1: base}
-            for link, parent in chain:
-                state = link_state(body_id, link, computeForwardKinematics=True)
+            for (link, parent), state in zip(chain, states):
                 world[link] = pose = (state[4], state[5])
                 poses.append(multiply(*invert(*world[parent]), *pose))
         return poses
@@ -175,7 +175,7 @@ class Monitor:
             chain = [(link, parents[link]) for link in sorted(body.links)]  # parents first
             tf += [(_link_frame(body, parent), _link_frame(body, link))
                    for link, parent in chain]
-            frames.append((body.body_id, [], chain))
+            frames.append((body.body_id, [link for link, _ in chain], chain))
         self._frames, self._tf = frames, tuple(tf)
 
     def _markers(self, t: int) -> None:
@@ -343,16 +343,15 @@ class ContactAggregator:
         self._version = -1   # of the physics' bodies that _bodies and _pairs are of
         self._bodies: list[int] = []
         self._pairs: dict[tuple[int, int, int, int], Any] = {}
-        self._contact_points: Any = None
 
     def add_step(self) -> None:
         """Add the contacts of the step just made."""
         self._steps += 1
         if self._version != self.physics.bodies_version:
             self._replan()
-        pairs, sums, contact_points = self._pairs, self._sums, self._contact_points
+        pairs, sums, contact_points = self._pairs, self._sums, self.physics.contact_points
         for body in self._bodies:
-            for point in contact_points(bodyA=body):
+            for point in contact_points(body):
                 pair_key = (body, point[3], point[2], point[4])
                 pair = pairs.get(pair_key, False)
                 if pair is False:
@@ -396,7 +395,6 @@ class ContactAggregator:
         self._bodies = [b.body_id for b in physics.bodies.values()
                         if not b.static and b.group is None]
         self._pairs = {}
-        self._contact_points = physics.client.getContactPoints
         self._version = physics.bodies_version
 
     def _pair(self, body: int, link: int, other: int, other_link: int

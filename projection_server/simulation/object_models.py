@@ -109,7 +109,7 @@ class EggShell:
     def _measure(self, physics: Physics) -> float:
         c = physics.client
         body_id = physics.body(self.name).body_id
-        points = c.getContactPoints(bodyA=body_id)
+        points = physics.contact_points(body_id)
         if not points:
             self._cache.clear()
             return 0.0

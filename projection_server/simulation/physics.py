@@ -205,12 +205,17 @@ class Gripper:
 
     def opening(self) -> float:
         """Distance between the pad faces [m]."""
-        return sum(self._client.getJointState(self.body_id, j)[0] for j in self._fingers)
+        return self.state()[0]
 
     def measured_force(self) -> float:
         """Mean magnitude of the finger motors' forces [N]."""
-        forces = [abs(self._client.getJointState(self.body_id, j)[3]) for j in self._fingers]
-        return sum(forces) / len(forces)
+        return self.state()[1]
+
+    def state(self) -> tuple[float, float]:
+        """``(opening, measured force)`` from one query of the finger joints."""
+        joints = self._client.getJointStates(self.body_id, self._fingers)
+        forces = [abs(joint[3]) for joint in joints]
+        return sum(joint[0] for joint in joints), sum(forces) / len(forces)
 
     def pad_faces(self) -> list[tuple[Pad, np.ndarray, np.ndarray, np.ndarray]]:
         """``(pad, face centre, face axes (2x3), face normal)`` of each pad in the world."""
@@ -271,6 +276,7 @@ class Physics:
         self.step_hooks: list[Callable[[], None]] = []   # run after every step's models
         self.bodies_version = 0   # changes whenever a body or fluid is added or replaced
         self._names: dict[int, str] = {}
+        self._step_contacts: dict[int, Any] = {}   # body id -> its contact points this step
 
     # --- registry -----------------------------------------------------------------------
     def add_body(self, body: Body) -> Body:
@@ -280,6 +286,7 @@ class Physics:
         self._names[body.body_id] = body.group or body.name
         self.shapes_changed = True
         self.bodies_version += 1
+        self._step_contacts = {}
         return body
 
     def add_fluid(self, fluid: Fluid) -> Fluid:
@@ -288,6 +295,7 @@ class Physics:
             raise ProjectionError('invalid_scenario', f'body {fluid.name!r} exists already')
         self.fluids[fluid.name] = fluid
         self.bodies_version += 1
+        self._step_contacts = {}
         return fluid
 
     def replace_body(self, name: str, body_id: int, shape: Shape) -> Body:
@@ -300,6 +308,7 @@ class Physics:
         self._names[body_id] = name
         self.shapes_changed = True
         self.bodies_version += 1
+        self._step_contacts = {}
         return new
 
     def body(self, name: str) -> Body:
@@ -330,6 +339,7 @@ class Physics:
         """One physics step, then every object model and every step hook."""
         self.client.stepSimulation()
         self.step_count += 1
+        self._step_contacts = {}
         for model in self.models:
             model.after_step(self)
         for hook in self.step_hooks:
@@ -344,6 +354,15 @@ class Physics:
         state = self.client.getLinkState(self.body(name).body_id, link,
                                          computeForwardKinematics=True)
         return state[4], state[5]
+
+    def contact_points(self, body_id: int) -> Any:
+        """PyBullet's contact points of ``body_id`` (as ``bodyA``) in the last step; asked
+        once per step and body, however many models and hooks want them."""
+        points = self._step_contacts.get(body_id)
+        if points is None:
+            points = self._step_contacts[body_id] = self.client.getContactPoints(
+                bodyA=body_id)
+        return points
 
     def contact_force(self, a: str, b: str) -> float:
         """Total normal force between bodies ``a`` and ``b`` [N]."""
