@@ -4,15 +4,23 @@ Bags are named after the projection's content key (:meth:`Job.key`), written und
 temporary name and renamed into place when complete, so an identical projection is answered
 from the bag directory, also across processes and restarts, and a bag is never overwritten.
 After each new bag the :class:`Retention` policy deletes the least recently used bags.
+
+A store keeps an index of its directory's bags (name, size, least recently used first), so
+that a new bag costs its retention check in memory rather than a scan of the whole
+directory (30-50 ms with 1,000 bags, the default limit, per projection). The index is
+rebuilt from the directory every :data:`RESCAN_EVERY` new bags, which takes in what other
+processes sharing the directory did meanwhile.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 import itertools
 import os
 from pathlib import Path
 import shutil
+import threading
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
@@ -22,9 +30,10 @@ if TYPE_CHECKING:
 
     from projection_server.simulation.job import Job
 
-__all__ = ['BagStore', 'Retention', 'TMP_PREFIX']
+__all__ = ['RESCAN_EVERY', 'BagStore', 'Retention', 'TMP_PREFIX']
 
 TMP_PREFIX = '.tmp-'
+RESCAN_EVERY = 100   # new bags between two scans of the directory into a store's index
 
 
 @dataclass(frozen=True)
@@ -46,27 +55,40 @@ class Retention:
         except TypeError as exc:
             raise ProjectionError('invalid_settings', f'retention: {exc}') from exc
 
+    def exceeded(self, count: int, total: int) -> bool:
+        """Whether ``count`` bags of ``total`` bytes are more than this policy keeps."""
+        return ((self.max_bags is not None and count > self.max_bags)
+                or (self.max_bytes is not None and total > self.max_bytes))
+
     def apply(self, bag_dir: Path, keep: Path) -> None:
         """Delete the least recently used bags of ``bag_dir`` beyond the limits; not ``keep``."""
-        bags = []
-        for entry in bag_dir.iterdir():
-            if entry.name.startswith('.') or not (entry / 'metadata.yaml').is_file():
-                continue
-            try:
-                size = sum(f.stat().st_size for f in entry.iterdir())
-                bags.append((entry.stat().st_mtime_ns, entry.name, size, entry))
-            except FileNotFoundError:   # deleted by another process meanwhile
-                continue
-        bags.sort()
-        count, total = len(bags), sum(b[2] for b in bags)
-        for _, _, size, path in bags:
-            if not ((self.max_bags is not None and count > self.max_bags)
-                    or (self.max_bytes is not None and total > self.max_bytes)):
+        bags = scan(bag_dir)
+        count, total = len(bags), sum(bags.values())
+        for name, size in bags.items():
+            if not self.exceeded(count, total):
                 break
-            if path == keep:
+            if bag_dir / name == keep:
                 continue
-            shutil.rmtree(path, ignore_errors=True)
+            shutil.rmtree(bag_dir / name, ignore_errors=True)
             count, total = count - 1, total - size
+
+
+def scan(bag_dir: Path) -> OrderedDict[str, int]:
+    """The finished bags of ``bag_dir``: name -> bytes, least recently used first."""
+    bags = []
+    for entry in bag_dir.iterdir():
+        if entry.name.startswith('.') or not (entry / 'metadata.yaml').is_file():
+            continue
+        try:
+            bags.append((entry.stat().st_mtime_ns, entry.name, _size(entry)))
+        except FileNotFoundError:   # deleted by another process meanwhile
+            continue
+    bags.sort()
+    return OrderedDict((name, size) for _, name, size in bags)
+
+
+def _size(bag: Path) -> int:
+    return sum(f.stat().st_size for f in bag.iterdir())
 
 
 class BagStore:
@@ -78,6 +100,10 @@ class BagStore:
         self.bag_dir.mkdir(parents=True, exist_ok=True)
         self.retention = Retention.of(retention)
         self._counter = itertools.count()
+        self._lock = threading.Lock()   # publish runs on each worker's thread
+        self._index: OrderedDict[str, int] | None = None   # scanned when first needed
+        self._bytes = 0
+        self._since_scan = 0
         self.remove_stale_tmp()
 
     @staticmethod
@@ -93,8 +119,15 @@ class BagStore:
         final = self.path(job, key)
         if not final.is_dir():
             return None
-        touch(final)
+        self.touch(final)
         return final
+
+    def touch(self, bag: Path) -> None:
+        """Mark a bag of this store as just used."""
+        touch(bag)
+        with self._lock:
+            if self._index is not None and bag.name in self._index:
+                self._index.move_to_end(bag.name)
 
     def tmp_dir(self) -> Path:
         """A new private directory for writing a bag under its final name."""
@@ -110,8 +143,36 @@ class BagStore:
         except OSError:
             if not final.is_dir():
                 raise   # otherwise made meanwhile by another process: keep that one
-        self.retention.apply(self.bag_dir, keep=final)
+        try:
+            size = _size(final)
+        except FileNotFoundError:   # deleted by another process's retention meanwhile
+            return final
+        with self._lock:
+            self._since_scan += 1
+            if self._index is None or self._since_scan >= RESCAN_EVERY:
+                self._rescan()
+            elif final.name not in self._index:
+                self._index[final.name] = size
+                self._bytes += size
+            self._index.move_to_end(final.name)
+            self._evict(keep=final.name)
         return final
+
+    def _rescan(self) -> None:
+        self._index = scan(self.bag_dir)
+        self._bytes = sum(self._index.values())
+        self._since_scan = 0
+
+    def _evict(self, keep: str) -> None:
+        """Delete least recently used bags until the index is within the limits."""
+        assert self._index is not None
+        while self.retention.exceeded(len(self._index), self._bytes):
+            name, size = next(iter(self._index.items()))
+            if name == keep:
+                break
+            del self._index[name]
+            self._bytes -= size
+            shutil.rmtree(self.bag_dir / name, ignore_errors=True)
 
     def remove_stale_tmp(self) -> None:
         """Delete temporary bags left by dead processes (crashes, kills)."""

@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from projection_server.workers.backend import ProjectionResult
-from projection_server.workers.bag_store import touch
 
 from projection_server.simulation.errors import ProjectionError
 
@@ -64,7 +63,7 @@ class Requests:
         request = self._by_key.get(key)
         if request is not None and (not request.future.done() or _usable(request.future)):
             if request.future.done():
-                touch(Path(request.future.result().bag))
+                self._store.touch(Path(request.future.result().bag))
             else:
                 request.owners.add(owner)
             return request, False

@@ -182,3 +182,41 @@ def test_retention_deletes_the_least_recently_used_bags(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ['.tmp-1-0', 'mid', 'new']
     Retention(max_bags=None, max_bytes=150).apply(tmp_path, keep=tmp_path / 'mid')
     assert sorted(p.name for p in tmp_path.iterdir()) == ['.tmp-1-0', 'mid']
+
+
+def _publish(store, name, size=100):
+    tmp = store.tmp_dir()
+    (tmp / name).mkdir()
+    (tmp / name / 'metadata.yaml').write_text('x' * size)
+    store.publish(tmp / name)
+    tmp.rmdir()
+
+
+def test_the_bag_store_keeps_the_most_recently_used_bags_without_rescanning(
+        tmp_path, monkeypatch):
+    from projection_server.workers import bag_store
+
+    store = bag_store.BagStore(tmp_path, Retention(max_bags=3, max_bytes=None))
+    for name in ['a', 'b', 'c']:
+        _publish(store, name)
+    store.touch(tmp_path / 'a')   # used again: now the most recent
+    monkeypatch.setattr(bag_store, 'scan', lambda _: pytest.fail('rescanned'))
+    _publish(store, 'd')
+    _publish(store, 'e')
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['a', 'd', 'e']
+
+
+def test_the_bag_store_counts_bags_other_processes_made_at_its_next_scan(
+        tmp_path, monkeypatch):
+    from projection_server.workers import bag_store
+
+    monkeypatch.setattr(bag_store, 'RESCAN_EVERY', 2)
+    store = bag_store.BagStore(tmp_path, Retention(max_bags=None, max_bytes=350))
+    _publish(store, 'a')   # the first: the directory is read
+    _publish(store, 'b')
+    for name in ['x', 'y']:   # written by another process sharing the directory
+        (tmp_path / name).mkdir()
+        (tmp_path / name / 'metadata.yaml').write_text('x' * 100)
+        os.utime(tmp_path / name, ns=(0, 0))
+    _publish(store, 'c')   # the second since that scan: read again, 500 bytes
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['a', 'b', 'c']
