@@ -4,8 +4,10 @@ Map of the package:
 
 * :mod:`.backend`: :class:`WorkerBackend`, the interface the projection layer talks to
   (submit a job -> future of a :class:`ProjectionResult`; cancel; close).
+* :mod:`.base`: what every backend shares (bag store, requests, ``submit``, ``cancel``).
 * :mod:`.bag_store`: the bag directory shared by every backend (names, retention).
 * :mod:`.requests`: the projections asked for, by job key and owner (every backend's).
+* :mod:`.warm_up`: the throw-away projection a worker runs before its first job.
 * :mod:`.local`: the ``local`` backend, supervised worker processes on this machine.
 * :mod:`.ray`: the ``ray`` backend, Ray actors on this machine or a Ray cluster.
 """

@@ -31,27 +31,27 @@ import threading
 from typing import Any, NoReturn, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
-from projection_server.simulation.settings import load_settings, Settings
 from projection_server.workers.backend import ProjectionResult
-from projection_server.workers.bag_store import BagStore, Retention
+from projection_server.workers.base import BackendBase
 from projection_server.workers.local.process import worker_main
-from projection_server.workers.requests import check_timeout, Request, Requests
 
 _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
-    from concurrent.futures import Future
     import os
 
     from projection_server.simulation.job import Job
+    from projection_server.simulation.settings import Settings
+    from projection_server.workers.bag_store import Retention
+    from projection_server.workers.requests import Request
 
 __all__ = ['WorkerPool']
 
 _POLL = 1.0   # s between liveness checks while waiting for a result
 
 
-class WorkerPool:
+class WorkerPool(BackendBase):
     """``workers`` supervised projection processes writing bags into ``bag_dir``.
 
     ``submit`` queues a projection and returns a :class:`~concurrent.futures.Future` of its
@@ -65,34 +65,16 @@ class WorkerPool:
                  retention: Retention | Mapping[str, Any] | None = None,
                  start_method: str = 'forkserver', startup_timeout: float = 60.0,
                  max_projections: int = 200, warm_up: bool = True):
-        if not isinstance(workers, int) or workers < 1:
-            raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
-        self.store = BagStore(bag_dir, retention)
-        self.bag_dir = self.store.bag_dir
-        self.settings = settings if settings is not None else load_settings()
-        self.startup_timeout = startup_timeout
-        self.max_projections = max_projections
+        super().__init__(bag_dir, workers, settings, retention, startup_timeout,
+                         max_projections)
         self.warm_up = warm_up
         self._context = multiprocessing.get_context(start_method)
         self._queue: queue.Queue[Request | None] = queue.Queue()
-        self._requests = Requests(self.store)
-        self._lock = threading.Lock()
-        self._closed = False
         self._slots = [_Slot(self, i) for i in range(workers)]
-
-    def __enter__(self) -> WorkerPool:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
 
     @property
     def workers(self) -> int:
         return len(self._slots)
-
-    @property
-    def retention(self) -> Retention:
-        return self.store.retention
 
     @property
     def warm_ups(self) -> list[dict[str, Any] | None]:
@@ -105,21 +87,8 @@ class WorkerPool:
         """Process ids of the running workers (None where none is running)."""
         return [slot.pid for slot in self._slots]
 
-    def submit(self, job: Job, timeout: float,
-               owner: str | None = None) -> Future[ProjectionResult]:
-        """Queue ``job``; its simulation may take ``timeout`` seconds of wall-clock time.
-
-        The time limit counts from when a worker takes the job, not from submission.
-        """
-        check_timeout(timeout)
-        key = job.key(self.settings)
-        with self._lock:
-            if self._closed:
-                raise ProjectionError('pool_closed', 'the projection pool is closed')
-            request, new = self._requests.add(job, key, timeout, owner)
-            if new:
-                self._queue.put(request)
-        return request.future
+    def _enqueue(self, request: Request) -> None:
+        self._queue.put(request)
 
     def run(self, job: Job, timeout: float) -> str:
         """Run ``job`` (or find its bag) and return the bag's path.
@@ -135,25 +104,13 @@ class WorkerPool:
                 if not any(slot.alive for slot in self._slots):
                     raise ProjectionError('pool_closed', 'no worker supervisor is running')
 
-    def cancel(self, owner: str) -> int:
-        """Cancel the unfinished projections that only ``owner`` asked for.
-
-        A queued one is dropped, a running one stops its worker (which is replaced); their
-        futures fail with kind ``cancelled``.
-        """
-        cancelled = 0
-        with self._lock:
-            for request in self._requests.only_for(owner):
-                request.cancelled = True
-                cancelled += 1
-                if request.future.running():   # stop the worker that runs it
-                    for slot in self._slots:
-                        if slot.request is request:
-                            slot.terminate_worker()
-                else:   # queued: its slot skips it
-                    self._requests.fail(request, ProjectionError(
-                        'cancelled', f'projection {request.key[:12]} was cancelled'))
-        return cancelled
+    def _stop(self, request: Request) -> bool:
+        if not request.future.running():
+            return False   # queued: its slot skips it
+        for slot in self._slots:
+            if slot.request is request:
+                slot.terminate_worker()
+        return True
 
     def close(self) -> None:
         """Stop the workers; queued projections fail with kind ``pool_closed``."""

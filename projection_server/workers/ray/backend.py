@@ -37,17 +37,17 @@ from ray.exceptions import GetTimeoutError, RayActorError, RayError
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.job import code_version
-from projection_server.simulation.settings import load_settings, Settings
 from projection_server.workers.backend import ProjectionResult
-from projection_server.workers.bag_store import BagStore, Retention
+from projection_server.workers.base import BackendBase
 from projection_server.workers.ray.actor import ProjectionActor
-from projection_server.workers.requests import check_timeout, Request, Requests
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
-    from concurrent.futures import Future
 
     from projection_server.simulation.job import Job
+    from projection_server.simulation.settings import Settings
+    from projection_server.workers.bag_store import Retention
+    from projection_server.workers.requests import Request
 
 __all__ = ['RayBackend', 'connect']
 
@@ -128,7 +128,7 @@ def connect(address: str, workers: int) -> Callable[[], None] | None:
     return shutdown
 
 
-class RayBackend:
+class RayBackend(BackendBase):
     """``workers`` Ray actors writing bags into ``bag_dir`` (a directory of this machine).
 
     ``address`` as for :func:`connect`. Implements
@@ -141,42 +141,24 @@ class RayBackend:
                  retention: Retention | Mapping[str, Any] | None = None,
                  address: str = '', startup_timeout: float = 120.0,
                  max_projections: int = 200):
-        if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-            raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
-        self.store = BagStore(bag_dir, retention)
-        self.bag_dir = self.store.bag_dir
-        self.settings = settings if settings is not None else load_settings()
+        super().__init__(bag_dir, workers, settings, retention, startup_timeout,
+                         max_projections)
         self.address = address
-        self.startup_timeout = startup_timeout
-        self.max_projections = max_projections
         self._code = code_version()
         self._stop_ray = connect(address, workers)
         # One CPU per actor: Ray places actors where cores are free, spread over the nodes.
         self._remote = ray.remote(ProjectionActor).options(
             num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD')
-        self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._queue: deque[Request] = deque()
-        self._requests = Requests(self.store)
-        self._closed = False
         self._actors = [self._new_actor() for _ in range(workers)]
         self._thread = threading.Thread(target=self._dispatch, name='ray-projection-dispatch',
                                         daemon=True)
         self._thread.start()
 
-    def __enter__(self) -> RayBackend:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
     @property
     def workers(self) -> int:
         return len(self._actors)
-
-    @property
-    def retention(self) -> Retention:
-        return self.store.retention
 
     def placement(self, timeout: float = 120.0) -> list[dict[str, Any]]:
         """Each actor's ``pid``, Ray ``node`` id and ``code_version``, once they are ready.
@@ -194,43 +176,21 @@ class RayBackend:
                 raise ProjectionError('timeout', f'Ray actors not ready within {timeout:g} s')
             time.sleep(0.05)
 
-    def submit(self, job: Job, timeout: float,
-               owner: str | None = None) -> Future[ProjectionResult]:
-        """Queue ``job``; its simulation may take ``timeout`` seconds of wall-clock time,
-        counted from when an actor takes it."""
-        check_timeout(timeout)
-        key = job.key(self.settings)
-        with self._lock:
-            if self._closed:
-                raise ProjectionError('pool_closed', 'the projection backend is closed')
-            request, new = self._requests.add(job, key, timeout, owner)
-            if new:
-                self._queue.append(request)
-                self._wake.notify()
-        return request.future
+    def _enqueue(self, request: Request) -> None:
+        self._queue.append(request)
+        self._wake.notify()
 
     def run(self, job: Job, timeout: float) -> str:
         """Run ``job`` (or find its bag) and return the bag's path."""
         return self.submit(job, timeout).result().bag
 
-    def cancel(self, owner: str) -> int:
-        """Cancel the unfinished projections that only ``owner`` asked for.
-
-        A queued one is dropped; a running one kills its actor, which Ray restarts.
-        """
-        cancelled = 0
-        with self._lock:
-            for request in self._requests.only_for(owner):
-                request.cancelled = True
-                cancelled += 1
-                running = [a for a in self._actors if a.request is request]
-                for actor in running:
-                    _kill(actor.handle, restart=True)
-                if not running:
-                    self._queue.remove(request)
-                    self._requests.fail(request, ProjectionError(
-                        'cancelled', f'projection {request.key[:12]} was cancelled'))
-        return cancelled
+    def _stop(self, request: Request) -> bool:
+        running = [a for a in self._actors if a.request is request]
+        for actor in running:
+            _kill(actor.handle, restart=True)   # Ray restarts it
+        if not running:
+            self._queue.remove(request)
+        return bool(running)
 
     def close(self) -> None:
         """Kill the actors; unfinished projections fail with kind ``pool_closed``."""

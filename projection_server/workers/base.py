@@ -1,0 +1,108 @@
+"""What every worker backend shares: the bag store, settings and limits, the requests by
+job key under one lock, ``submit``'s bookkeeping, the context manager.
+
+A backend subclasses :class:`BackendBase` and says how a new request reaches its workers
+(:meth:`BackendBase._enqueue`), how many workers it has, how it stops a running projection
+(:meth:`BackendBase._stop`) and how it closes.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+import threading
+from typing import Any, TYPE_CHECKING
+
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.settings import load_settings
+from projection_server.workers.bag_store import BagStore
+from projection_server.workers.requests import check_timeout, Requests
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+    from concurrent.futures import Future
+    import os
+
+    from projection_server.simulation.job import Job
+    from projection_server.simulation.settings import Settings
+    from projection_server.workers.backend import ProjectionResult
+    from projection_server.workers.bag_store import Retention
+    from projection_server.workers.requests import Request
+
+__all__ = ['BackendBase']
+
+
+class BackendBase(ABC):
+    """``workers`` workers writing bags into ``bag_dir``; see
+    :class:`~projection_server.workers.backend.WorkerBackend`."""
+
+    def __init__(self, bag_dir: str | os.PathLike[str], workers: int,
+                 settings: Settings | None, retention: Retention | Mapping[str, Any] | None,
+                 startup_timeout: float, max_projections: int):
+        if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+            raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
+        self.store = BagStore(bag_dir, retention)
+        self.bag_dir = self.store.bag_dir
+        self.settings = settings if settings is not None else load_settings()
+        self.startup_timeout = startup_timeout
+        self.max_projections = max_projections
+        self._lock = threading.Lock()
+        self._requests = Requests(self.store)
+        self._closed = False
+
+    def __enter__(self) -> BackendBase:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    @abstractmethod
+    def workers(self) -> int:
+        """How many projections run at once (the useful prefetch depth)."""
+
+    @property
+    def retention(self) -> Retention:
+        return self.store.retention
+
+    def submit(self, job: Job, timeout: float,
+               owner: str | None = None) -> Future[ProjectionResult]:
+        """Queue ``job``; its simulation may take ``timeout`` seconds of wall-clock time,
+        counted from when a worker takes it. Identical jobs share one future."""
+        check_timeout(timeout)
+        key = job.key(self.settings)
+        with self._lock:
+            if self._closed:
+                raise ProjectionError('pool_closed', 'the projection backend is closed')
+            request, new = self._requests.add(job, key, timeout, owner)
+            if new:
+                self._enqueue(request)
+        return request.future
+
+    @abstractmethod
+    def _enqueue(self, request: Request) -> None:
+        """Hand a new request to the workers (called with the lock)."""
+
+    def cancel(self, owner: str) -> int:
+        """Cancel the unfinished projections that only ``owner`` asked for; how many.
+
+        A queued one is dropped, a running one stops its worker (which is replaced); their
+        futures fail with kind ``cancelled``.
+        """
+        cancelled = 0
+        with self._lock:
+            for request in self._requests.only_for(owner):
+                request.cancelled = True
+                cancelled += 1
+                if not self._stop(request):   # queued: fails now; else when its worker ends
+                    self._requests.fail(request, ProjectionError(
+                        'cancelled', f'projection {request.key[:12]} was cancelled'))
+        return cancelled
+
+    @abstractmethod
+    def _stop(self, request: Request) -> bool:
+        """Stop the worker that runs ``request`` and say True; False if none runs it (it
+        is queued: drop it from the queue where that can be done). Called with the lock."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop the workers; unfinished projections fail with kind ``pool_closed``."""
