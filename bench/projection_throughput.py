@@ -6,16 +6,19 @@ positions) once in ALL_SOLUTIONS mode; repeats. In the same run, this process st
 same 18 grasps bare (world, program, ``stepSimulation`` and the egg's contact query per
 step; see ``bench/pipeline_overhead.py``): the floor of W workers is that sum divided by W.
 It also steps them bare in W processes at once: on a machine shared with other work, that
-wall time is the floor W workers can reach there and then.
+wall time is the floor W workers can reach there and then. And it runs the 18 projections'
+full pipeline (a warm simulator: world, program, object models, monitor, bag, timeline;
+what a worker does) in W processes at once, without node, Prolog or pool: the service's
+own cost is its wall time over that one. The node's CPU time during the query is its share
+of the cores.
 On the last node it also measures:
 
 * the first solution of an INCREMENTAL query over grasps not made yet, against the bare
-  stepping of that one grasp;
+  stepping and the pipeline (in this process, warm) of that one grasp;
 * the cached re-query (the same Table I query again: every bag and timeline exists);
 * the resident memory of the node and of each worker after Table I.
 
-``--flat-memory N`` then opens an INCREMENTAL query over 1,000 parametrizations on a fresh
-node, takes N solutions and prints the node's and the workers' memory every N/5 solutions.
+A 1,000-parametrization INCREMENTAL query in flat memory: ``bench/flat_memory.py``.
 
     tools/with_env.sh python bench/projection_throughput.py --workers 1 2 --repeat 3
 """
@@ -43,9 +46,6 @@ PROJECTIONS = len(POSITIONS) * len(FORCES)
 FIRST = ('make_projection(grasping, grasp_object, [(F, force, [4, 6, 8]), '
          '(P, position, [0.01])], TL), ( occurs(break, _, TL) -> O = break ; O = ok )')
 FIRST_PARAMS = {'force': 4, 'position': 0.01}
-MANY = ('make_projection(grasping, grasp_object, '
-        '[(F, force, range(1.0, 10.99, 0.01)), (P, position, [0.0])], TL), '
-        '( occurs(break, _, TL) -> O = break ; O = ok )')
 
 
 def rss_mb(pid: int) -> float:
@@ -72,8 +72,8 @@ def children(pid: int) -> list[int]:
     return out
 
 
-def worker_rss(pid: int) -> list[float]:
-    """RSS of the node's projection workers [MB]: the children of its forkserver."""
+def workers_of(pid: int) -> list[int]:
+    """The node's projection worker processes: the children of its forkserver."""
     out = []
     for child in children(pid):
         try:
@@ -81,8 +81,57 @@ def worker_rss(pid: int) -> list[float]:
         except OSError:
             continue
         if b'forkserver' in cmdline:
-            out += [rss_mb(worker) for worker in children(child)]
+            out += children(child)
     return out
+
+
+def worker_rss(pid: int) -> list[float]:
+    """RSS of the node's projection workers [MB]."""
+    return [rss_mb(worker) for worker in workers_of(pid)]
+
+
+def cpu_seconds(pid: int) -> float:
+    """User and system CPU time of a process, all its threads [s] (0 if it is gone)."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+_simulator = None
+
+
+def _pipeline_start() -> None:
+    """A pipeline process: a warm simulator, as a worker has it (warm-up included)."""
+    global _simulator
+    from projection_server.simulation.runner import Simulator
+    from projection_server.simulation.settings import load_settings
+    from projection_server.workers.warm_up import warm_up
+
+    _simulator = Simulator()
+    warm_up(_simulator, load_settings())
+
+
+def _pipeline_run(job, settings) -> float:
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        _simulator.run(job, settings, Path(tmp) / 'bag')
+        return time.perf_counter() - start
+
+
+def parallel_pipeline(jobs, settings, workers: int) -> float:
+    """Wall time [s] of the full pipeline of ``jobs`` in ``workers`` warm processes at once:
+    what the workers themselves need, without node, Prolog, pool or bag directory."""
+    from concurrent.futures import ProcessPoolExecutor
+    import multiprocessing
+
+    with ProcessPoolExecutor(workers, multiprocessing.get_context('forkserver'),
+                             initializer=_pipeline_start) as pool:
+        list(pool.map(_pipeline_run, jobs[:workers], [settings] * workers))   # all started
+        start = time.perf_counter()
+        list(pool.map(_pipeline_run, jobs, [settings] * len(jobs)))
+        return time.perf_counter() - start
 
 
 def node(workers: int, bag_dir: str, log: Path):
@@ -117,8 +166,6 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--workers', type=int, nargs='+', default=[1, 2])
     parser.add_argument('--repeat', type=int, default=3)
-    parser.add_argument('--flat-memory', type=int, default=0, metavar='N',
-                        help='solutions of the 1,000-parametrization query (0: skip)')
     args = parser.parse_args()
     os.environ.setdefault('ROS_DOMAIN_ID', str(130 + os.getpid() % 30))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -143,6 +190,8 @@ def main() -> int:
     runs: dict[int, list[float]] = {}
     floors: list[float] = []
     parallel: dict[int, list[float]] = {}
+    pipelines: dict[int, list[float]] = {}
+    node_cpu: dict[int, list[float]] = {}
     extra: dict[str, object] = {}
     grid = None
     try:
@@ -152,27 +201,48 @@ def main() -> int:
                     floors.append(bare_floor(jobs, settings, bare))
                     parallel.setdefault(workers, []).append(
                         parallel_floor(jobs, settings, workers))
+                    pipelines.setdefault(workers, []).append(
+                        parallel_pipeline(jobs, settings, workers))
                     bag_dir = tempfile.mkdtemp(dir=tmp)
                     last = r == args.repeat - 1 and workers == args.workers[-1]
                     with node(workers, bag_dir, Path(tmp) / f'node-{r}-{workers}.log') as proc:
                         proc.wait_for_service('/projection_server/query')
                         with client() as c:
                             c.once('true')   # the node is up and Prolog loaded
+                            wait_warm(proc.proc.pid, workers)
+                            cpu = cpu_seconds(proc.proc.pid)
                             elapsed, grid = timed(lambda: c.all(QUERY, timeout=600.0))
                             runs.setdefault(workers, []).append(elapsed)
+                            node_cpu.setdefault(workers, []).append(
+                                cpu_seconds(proc.proc.pid) - cpu)
                             print(f'  workers={workers} run {r + 1}: {elapsed:.2f} s, '
                                   f'floor {floors[-1] / workers:.2f} s, bare in {workers} '
-                                  f'processes {parallel[workers][-1]:.2f} s', flush=True)
+                                  f'processes {parallel[workers][-1]:.2f} s, pipeline in '
+                                  f'{workers} processes {pipelines[workers][-1]:.2f} s, node '
+                                  f'CPU {node_cpu[workers][-1]:.2f} s', flush=True)
                             if last:
                                 extra = measure_last(c, proc.proc.pid, first_job,
                                                      settings, bare)
-            if args.flat_memory:
-                extra['flat'] = flat_memory(args.flat_memory, args.workers[-1], tmp)
     finally:
         bare.disconnect()
         rclpy.try_shutdown()
-    report(args, settings, runs, floors, parallel, extra, grid)
+    report(args, settings, runs, floors, parallel, pipelines, node_cpu, extra, grid)
     return 0
+
+
+def wait_warm(pid: int, workers: int, timeout: float = 120.0) -> None:
+    """Until the node's workers have started and warmed up (each then waits for a job,
+    using no CPU): what a node that has been up for a while offers its first query."""
+    deadline = time.monotonic() + timeout
+    last: dict[int, float] = {}
+    while time.monotonic() < deadline:
+        pids = workers_of(pid)
+        now = {p: cpu_seconds(p) for p in pids}
+        if len(pids) == workers and now == last:
+            return
+        last = now
+        time.sleep(0.25)
+    raise RuntimeError(f'the workers of node {pid} did not settle within {timeout:g} s')
 
 
 def measure_last(c, pid: int, first_job, settings, bare) -> dict[str, object]:
@@ -184,31 +254,14 @@ def measure_last(c, pid: int, first_job, settings, bare) -> dict[str, object]:
         next(iter(solutions))
         out['first'] = time.perf_counter() - start
     out['first_floor'] = statistics.median(floor(bare, first_job, settings) for _ in range(3))
+    _pipeline_start()
+    out['first_pipeline'] = statistics.median(_pipeline_run(first_job, settings)
+                                              for _ in range(3))
     return out
 
 
-def flat_memory(solutions: int, workers: int, tmp: str) -> list[tuple[int, float, float]]:
-    """(solutions taken, node RSS, largest worker RSS) every solutions/5 solutions."""
-    rows = []
-    every = max(1, solutions // 5)
-    with node(workers, tempfile.mkdtemp(dir=tmp), Path(tmp) / 'node-flat.log') as proc:
-        proc.wait_for_service('/projection_server/query')
-        with client() as c:
-            c.once('true')
-            rows.append((0, rss_mb(proc.proc.pid), 0.0))
-            with c.query(MANY, timeout=600.0) as stream:
-                for n, _ in enumerate(stream, start=1):
-                    if n % every == 0:
-                        rows.append((n, rss_mb(proc.proc.pid), max(worker_rss(proc.proc.pid),
-                                                               default=0.0)))
-                        print(f'  flat memory: {n} solutions, node {rows[-1][1]:.0f} MB, '
-                              f'worker {rows[-1][2]:.0f} MB', flush=True)
-                    if n >= solutions:
-                        break
-    return rows
-
-
-def report(args, settings, runs, floors, parallel, extra, grid) -> None:
+def report(args, settings, runs, floors, parallel, pipelines, node_cpu, extra, grid
+           ) -> None:
     per_run_floor = statistics.median(floors)
     print('projection throughput benchmark (Table I grasping query through the service)')
     print(f'  settings: {PROJECTIONS} projections, ALL_SOLUTIONS, repeat={args.repeat} per '
@@ -219,26 +272,34 @@ def report(args, settings, runs, floors, parallel, extra, grid) -> None:
           f'{os.getloadavg()[0]:.1f}')
     print(f'  bare stepping of the 18 grasps: median {per_run_floor:.2f} s '
           f'(runs {", ".join(f"{f:.2f}" for f in floors)})')
-    base = statistics.median(runs[args.workers[0]])
+    first = args.workers[0]
+    base = statistics.median(runs[first])
     for workers, times in runs.items():
         med = statistics.median(times)
         bound = per_run_floor / workers
         measured = statistics.median(parallel[workers])
+        piped = statistics.median(pipelines[workers])
+        # The service's cost over its workers' pipeline, run by run (same load).
+        over = statistics.median(t / p for t, p in zip(times, pipelines[workers]))
+        cpu = statistics.median(node_cpu[workers])
         print(f'  workers={workers}: median {med:6.2f} s ({med / PROJECTIONS * 1e3:5.0f} ms per '
               f'projection), floor {bound:5.2f} s, ratio {med / bound:4.2f}x, speed-up '
               f'{base / med:4.2f}x; bare in {workers} processes {measured:.2f} s, ratio '
               f'{med / measured:4.2f}x')
+        print(f'             pipeline in {workers} processes {piped:.2f} s (speed-up '
+              f'{statistics.median(pipelines[first]) / piped:4.2f}x, bare '
+              f'{statistics.median(parallel[first]) / measured:4.2f}x): the service over its '
+              f"workers' pipeline {over:4.2f}x; node CPU {cpu:.2f} s")
     if extra:
         print(f'  cached re-query: median {extra["cached"] * 1e3:.0f} ms (5 runs)')
         print(f'  first INCREMENTAL solution (a new grasp): {extra["first"]:.2f} s, its bare '
               f'stepping {extra["first_floor"]:.2f} s, ratio '
-              f'{extra["first"] / extra["first_floor"]:.2f}x')
+              f'{extra["first"] / extra["first_floor"]:.2f}x; its pipeline '
+              f'{extra["first_pipeline"]:.2f} s, ratio '
+              f'{extra["first"] / extra["first_pipeline"]:.2f}x')
         workers_rss = ', '.join(f'{m:.0f}' for m in extra['worker_rss'])
         print(f'  memory after Table I: node {extra["node_rss"]:.0f} MB, workers '
               f'{workers_rss} MB')
-    for n, node_mb, worker_mb in extra.get('flat', []):
-        print(f'  1,000-parametrization INCREMENTAL query, {n:4d} solutions: node '
-              f'{node_mb:.0f} MB, worker {worker_mb:.0f} MB')
     if grid:
         rows: dict[float, list[str]] = {}
         for s in grid:
