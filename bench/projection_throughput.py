@@ -113,16 +113,18 @@ def _pipeline_start() -> None:
     warm_up(_simulator, load_settings())
 
 
-def _pipeline_run(job, settings) -> float:
+def _pipeline_run(job, settings) -> tuple[float, float]:
+    """Wall and CPU seconds of one projection's pipeline in this process."""
     with tempfile.TemporaryDirectory() as tmp:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         _simulator.run(job, settings, Path(tmp) / 'bag')
-        return time.perf_counter() - start
+        return time.perf_counter() - start, time.process_time() - cpu
 
 
-def parallel_pipeline(jobs, settings, workers: int) -> float:
-    """Wall time [s] of the full pipeline of ``jobs`` in ``workers`` warm processes at once:
-    what the workers themselves need, without node, Prolog, pool or bag directory."""
+def parallel_pipeline(jobs, settings, workers: int) -> tuple[float, float]:
+    """Wall time [s] of the full pipeline of ``jobs`` in ``workers`` warm processes at once,
+    and their CPU time [s]: what the workers themselves need, without node, Prolog, pool or
+    bag directory."""
     from concurrent.futures import ProcessPoolExecutor
     import multiprocessing
 
@@ -130,8 +132,8 @@ def parallel_pipeline(jobs, settings, workers: int) -> float:
                              initializer=_pipeline_start) as pool:
         list(pool.map(_pipeline_run, jobs[:workers], [settings] * workers))   # all started
         start = time.perf_counter()
-        list(pool.map(_pipeline_run, jobs, [settings] * len(jobs)))
-        return time.perf_counter() - start
+        times = list(pool.map(_pipeline_run, jobs, [settings] * len(jobs)))
+        return time.perf_counter() - start, sum(cpu for _, cpu in times)
 
 
 def node(workers: int, bag_dir: str, log: Path):
@@ -192,6 +194,9 @@ def main() -> int:
     parallel: dict[int, list[float]] = {}
     pipelines: dict[int, list[float]] = {}
     node_cpu: dict[int, list[float]] = {}
+    # CPU seconds of the service (node and workers) over those of the pipeline alone: what
+    # the service adds in work, which a loaded machine does not inflate as it does wall time
+    cpu_ratio: dict[int, list[float]] = {}
     extra: dict[str, object] = {}
     grid = None
     try:
@@ -201,8 +206,8 @@ def main() -> int:
                     floors.append(bare_floor(jobs, settings, bare))
                     parallel.setdefault(workers, []).append(
                         parallel_floor(jobs, settings, workers))
-                    pipelines.setdefault(workers, []).append(
-                        parallel_pipeline(jobs, settings, workers))
+                    piped, piped_cpu = parallel_pipeline(jobs, settings, workers)
+                    pipelines.setdefault(workers, []).append(piped)
                     bag_dir = tempfile.mkdtemp(dir=tmp)
                     last = r == args.repeat - 1 and workers == args.workers[-1]
                     with node(workers, bag_dir, Path(tmp) / f'node-{r}-{workers}.log') as proc:
@@ -210,11 +215,16 @@ def main() -> int:
                         with client() as c:
                             c.once('true')   # the node is up and Prolog loaded
                             wait_warm(proc.proc.pid, workers)
+                            pids = workers_of(proc.proc.pid)
                             cpu = cpu_seconds(proc.proc.pid)
+                            cpu_workers = sum(cpu_seconds(p) for p in pids)
                             elapsed, grid = timed(lambda: c.all(QUERY, timeout=600.0))
                             runs.setdefault(workers, []).append(elapsed)
                             node_cpu.setdefault(workers, []).append(
                                 cpu_seconds(proc.proc.pid) - cpu)
+                            cpu_workers = sum(cpu_seconds(p) for p in pids) - cpu_workers
+                            cpu_ratio.setdefault(workers, []).append(
+                                (node_cpu[workers][-1] + cpu_workers) / piped_cpu)
                             print(f'  workers={workers} run {r + 1}: {elapsed:.2f} s, '
                                   f'floor {floors[-1] / workers:.2f} s, bare in {workers} '
                                   f'processes {parallel[workers][-1]:.2f} s, pipeline in '
@@ -226,7 +236,8 @@ def main() -> int:
     finally:
         bare.disconnect()
         rclpy.try_shutdown()
-    report(args, settings, runs, floors, parallel, pipelines, node_cpu, extra, grid)
+    report(args, settings, runs, floors, parallel, pipelines, node_cpu, cpu_ratio, extra,
+           grid)
     return 0
 
 
@@ -255,13 +266,13 @@ def measure_last(c, pid: int, first_job, settings, bare) -> dict[str, object]:
         out['first'] = time.perf_counter() - start
     out['first_floor'] = statistics.median(floor(bare, first_job, settings) for _ in range(3))
     _pipeline_start()
-    out['first_pipeline'] = statistics.median(_pipeline_run(first_job, settings)
+    out['first_pipeline'] = statistics.median(_pipeline_run(first_job, settings)[0]
                                               for _ in range(3))
     return out
 
 
-def report(args, settings, runs, floors, parallel, pipelines, node_cpu, extra, grid
-           ) -> None:
+def report(args, settings, runs, floors, parallel, pipelines, node_cpu, cpu_ratio, extra,
+           grid) -> None:
     per_run_floor = statistics.median(floors)
     print('projection throughput benchmark (Table I grasping query through the service)')
     print(f'  settings: {PROJECTIONS} projections, ALL_SOLUTIONS, repeat={args.repeat} per '
@@ -289,7 +300,8 @@ def report(args, settings, runs, floors, parallel, pipelines, node_cpu, extra, g
         print(f'             pipeline in {workers} processes {piped:.2f} s (speed-up '
               f'{statistics.median(pipelines[first]) / piped:4.2f}x, bare '
               f'{statistics.median(parallel[first]) / measured:4.2f}x): the service over its '
-              f"workers' pipeline {over:4.2f}x; node CPU {cpu:.2f} s")
+              f"workers' pipeline {over:4.2f}x; node CPU {cpu:.2f} s; CPU time of node "
+              f'and workers over the pipeline\'s {statistics.median(cpu_ratio[workers]):4.2f}x')
     if extra:
         print(f'  cached re-query: median {extra["cached"] * 1e3:.0f} ms (5 runs)')
         print(f'  first INCREMENTAL solution (a new grasp): {extra["first"]:.2f} s, its bare '
