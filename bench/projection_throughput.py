@@ -161,7 +161,7 @@ def timed(fn):
 
 def bare_floor(jobs, settings, bare) -> float:
     """Seconds of bare stepping of all ``jobs``, one after the other."""
-    return sum(floor(bare, job, settings) for job in jobs)
+    return sum(floor(bare, job, settings)[0] for job in jobs)
 
 
 def main() -> int:
@@ -173,11 +173,11 @@ def main() -> int:
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
     import pybullet
-    from pybullet_utils.bullet_client import BulletClient
     import rclpy
 
     from projection_server import prolog_bridge
     from projection_server.simulation.job import Job
+    from projection_server.simulation.physics import bound_client
     from projection_server.simulation.settings import load_settings
 
     prolog_bridge.load()
@@ -186,7 +186,7 @@ def main() -> int:
     jobs = [Job.checked(grasping, 'grasp_object', {'force': f, 'position': p})
             for p in POSITIONS for f in FORCES]
     first_job = Job.checked(grasping, 'grasp_object', FIRST_PARAMS)
-    bare = BulletClient(connection_mode=pybullet.DIRECT)
+    bare = bound_client(pybullet.DIRECT)   # as the workers' and pipeline_overhead.py's
     bare_floor(jobs[:2], settings, bare)   # warm-up
     rclpy.init()
     runs: dict[int, list[float]] = {}
@@ -264,7 +264,8 @@ def measure_last(c, pid: int, first_job, settings, bare) -> dict[str, object]:
         start = time.perf_counter()
         next(iter(solutions))
         out['first'] = time.perf_counter() - start
-    out['first_floor'] = statistics.median(floor(bare, first_job, settings) for _ in range(3))
+    out['first_floor'] = statistics.median(floor(bare, first_job, settings)[0]
+                                            for _ in range(3))
     _pipeline_start()
     out['first_pipeline'] = statistics.median(_pipeline_run(first_job, settings)[0]
                                               for _ in range(3))
