@@ -7,13 +7,12 @@ must never be forked) that keeps one warm DIRECT-mode PyBullet client
 ``(result, ok)``; exceptions travel back as :class:`ProjectionError`. Every wait in the
 parent has a time limit. A worker that crashes or runs over its projection's time limit is
 terminated, its projection fails with kind ``worker_crashed`` or ``timeout``, and a new
-worker is started for the next projection. Workers start with the pool, so the first
-projection finds them warm: each has run a throw-away projection
+worker is started at once, ready for the next projection. Workers start with the pool, so
+the first projection finds them warm: each has run a throw-away projection
 (:mod:`projection_server.workers.warm_up`) before it takes a job. Each projection builds a
-fresh world. PyBullet
-keeps about 0.1 MB per world it has built, even after ``resetSimulation``, so a worker is
-replaced by a fresh one after ``max_projections`` projections (at once, not when the next
-projection comes).
+fresh world. PyBullet keeps about 0.1 MB per world it has built, even after
+``resetSimulation``, so a worker is replaced by a fresh one after ``max_projections``
+projections (at once, not when the next projection comes).
 
 The worker translates its projection into a timeline from the samples it has in memory and
 sends it back with the bag, so the parent never reads the bag it just had written. Bags go
