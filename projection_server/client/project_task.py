@@ -116,9 +116,10 @@ class ProjectTask:
                                           ' the query was cancelled') from None
             raise
 
-    def _await_feedback(self, count: int, patience: float = 1.0) -> None:
+    def _await_feedback(self, count: int, patience: float = 5.0) -> None:
         # Feedback (a topic) and the result (a service) travel separately: the last
-        # feedback may arrive just after the result.
+        # feedback may arrive just after the result; on a loaded machine (load 6 on 2
+        # cores) more than a second after it.
         end = time.monotonic() + patience
         while time.monotonic() < end:
             with self._lock:
