@@ -1,0 +1,128 @@
+"""What the service path adds between its workers and Prolog: Table I in one process, no ROS.
+
+Loads the server's Prolog, starts the local worker pool with ``--workers`` warm workers and
+runs the Table I query (18 grasps, a fresh bag directory each run) through Prolog as the
+query service does, while recording, for every projection, how long its worker was busy
+with it (from sending the job to receiving the timeline, pickling included). The workers'
+busy time divided by their number is the floor of the service path; the query's wall time
+over it is what Prolog, the pool, the bag store and the hand-over cost on top, and what
+idle workers between jobs cost. Also printed: the CPU time of this process (everything but
+the workers) and the longest a worker waited between two jobs of the query.
+
+    tools/with_env.sh python bench/service_path.py --workers 1 2 --repeat 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import resource
+import statistics
+import sys
+import tempfile
+import threading
+import time
+
+from projection_throughput import QUERY
+
+
+def cpu_self() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+class Recorder:
+    """Wraps the pool's slots: (slot, sent, answered) for every projection."""
+
+    def __init__(self):
+        from projection_server.workers.local import pool
+
+        self.spans: list[tuple[str, float, float]] = []
+        self._lock = threading.Lock()
+        self._pool = pool
+        original = pool._Slot._receive
+        recorder = self
+
+        def receive(slot, timeout, what):
+            start = time.perf_counter()
+            try:
+                return original(slot, timeout, what)
+            finally:
+                if what.startswith('projection'):
+                    with recorder._lock:
+                        recorder.spans.append((threading.current_thread().name, start,
+                                               time.perf_counter()))
+
+        pool._Slot._receive = receive
+
+    def take(self) -> list[tuple[str, float, float]]:
+        with self._lock:
+            spans, self.spans = self.spans, []
+        return spans
+
+
+def run(workers: int, recorder: Recorder) -> dict[str, float]:
+    from projection_server import projection, prolog_bridge
+
+    with tempfile.TemporaryDirectory() as bags:
+        projection.configure(bag_dir=bags, workers=workers)
+        pool = projection._get_backend()
+        deadline = time.monotonic() + 120.0
+        while None in pool.warm_ups:   # started and warm, as a node's workers soon are
+            if time.monotonic() > deadline:
+                raise RuntimeError('the workers did not start')
+            time.sleep(0.05)
+        recorder.take()
+        cpu, start = cpu_self(), time.perf_counter()
+        with prolog_bridge.solutions(QUERY, {'timeout': 600.0, 'sandbox': True}) as results:
+            solutions = [r for r in results if r['status'] == 'solution']
+        wall, cpu = time.perf_counter() - start, cpu_self() - cpu
+        spans = recorder.take()
+        projection.shutdown()
+    if len(solutions) != 18:
+        raise RuntimeError(f'{len(solutions)} solutions instead of 18')
+    busy = sum(end - begin for _, begin, end in spans)
+    gaps = []
+    for slot in {name for name, _, _ in spans}:
+        own = sorted((b, e) for name, b, e in spans if name == slot)
+        gaps += [b2 - e1 for (_, e1), (b2, _) in zip(own, own[1:])]
+    return {'wall': wall, 'floor': busy / workers, 'cpu': cpu,
+            'gap': max(gaps, default=0.0)}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--workers', type=int, nargs='+', default=[1, 2])
+    parser.add_argument('--repeat', type=int, default=3)
+    args = parser.parse_args()
+
+    from projection_server import prolog_bridge
+
+    prolog_bridge.load()
+    prolog_bridge.attach_engine()
+    recorder = Recorder()
+    runs: dict[int, list[dict[str, float]]] = {}
+    for r in range(args.repeat):
+        for workers in args.workers:
+            result = run(workers, recorder)
+            runs.setdefault(workers, []).append(result)
+            print(f'  workers={workers} run {r + 1}: {result["wall"]:.2f} s, busy / workers '
+                  f'{result["floor"]:.2f} s, this process {result["cpu"]:.2f} s CPU, '
+                  f'longest idle between jobs {result["gap"] * 1e3:.1f} ms', flush=True)
+    print('service path benchmark (Table I through Prolog and the pool, in one process)')
+    print(f'  settings: 18 projections, a fresh bag directory and warm workers each run, '
+          f'repeat={args.repeat}; python {platform.python_version()}, {os.cpu_count()} '
+          f'cores, load average {os.getloadavg()[0]:.1f}')
+    for workers, results in runs.items():
+        ratio = statistics.median(x['wall'] / x['floor'] for x in results)
+        print(f'  workers={workers}: median {statistics.median(x["wall"] for x in results):.2f}'
+              f' s against the workers\' busy time / {workers} '
+              f'{statistics.median(x["floor"] for x in results):.2f} s: ratio {ratio:.3f}x; '
+              f'this process {statistics.median(x["cpu"] for x in results):.2f} s CPU; '
+              f'longest idle between jobs {max(x["gap"] for x in results) * 1e3:.1f} ms')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
