@@ -15,6 +15,7 @@ markers topic with a ``SPHERE_LIST`` marker per fluid (namespace :data:`PARTICLE
 from __future__ import annotations
 
 import functools
+import math
 from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
@@ -72,6 +73,7 @@ class Monitor:
                          for body in physics.bodies.values() if body.cls == 'robot'}
         self._frames: list[tuple[Any, ...]] | None = None
         self._tf: tuple[tuple[str, str], ...] = ()
+        self._tf_pack: Any = None
         client = physics.client
         self._base_pose = client.getBasePositionAndOrientation
         self._link_states = client.getLinkStates
@@ -104,7 +106,7 @@ class Monitor:
         values: list[Any] = []
         for position, orientation in poses:
             values += (sec, nanosec, *position, *orientation)
-        write(TOPICS['tf'], 'tf2_msgs/msg/TFMessage', _tf_template(self._tf).pack(values), t)
+        write(TOPICS['tf'], 'tf2_msgs/msg/TFMessage', self._tf_pack(values), t)
         records.append(Record('tf', t, [(parent, child, *pose) for (parent, child), pose
                                         in zip(self._tf, poses)]))
         write(TOPICS['clock'], 'rosgraph_msgs/msg/Clock',
@@ -177,6 +179,7 @@ class Monitor:
                    for link, parent in chain]
             frames.append((body.body_id, [link for link, _ in chain], chain))
         self._frames, self._tf = frames, tuple(tf)
+        self._tf_pack = _tf_template(self._tf).pack
 
     def _markers(self, t: int) -> None:
         markers = []
@@ -422,14 +425,15 @@ class ContactAggregator:
             total = row[0]
             if total > 0:
                 position = (row[1] / total, row[2] / total, row[3] / total)
-                normal = np.array(row[4:7])
+                nx, ny, nz = row[4:7]
             else:
                 position = (row[11] / row[10], row[12] / row[10], row[13] / row[10])
-                normal = np.array(row[14:17])
-            norm = float(np.linalg.norm(normal))
+                nx, ny, nz = row[14:17]
+            vector = np.array((nx, ny, nz))
+            norm = math.sqrt(vector.dot(vector))   # what np.linalg.norm computes
             out.append(ContactSample(
                 *key, position=position,
-                normal=tuple(normal / norm) if norm > 0 else (0.0, 0.0, 1.0),
+                normal=(nx / norm, ny / norm, nz / norm) if norm > 0 else (0.0, 0.0, 1.0),
                 normal_force=total / steps,
                 friction=(row[7] / steps, row[8] / steps, row[9] / steps)))
         if self.physics.fluids:

@@ -388,30 +388,46 @@ class Physics:
     def contacts(self) -> list[ContactSample]:
         """All contacts of the last step between named bodies, one per link pair, sorted."""
         groups: dict[tuple[str, str, str, str], list[tuple[Any, float]]] = {}
+        frames: dict[tuple[int, int], tuple[str | None, str]] = {}   # (body, link) -> names
+        fluids = self.fluids
         for point in self._contact_points():
-            a, b = self.name_of(point[1]), self.name_of(point[2])
-            if a is None or b is None or (a == b and a in self.fluids):
+            key_a = frames.get((point[1], point[3]))
+            if key_a is None:
+                key_a = frames[(point[1], point[3])] = (
+                    self.name_of(point[1]), self.link_name(point[1], point[3]))
+            key_b = frames.get((point[2], point[4]))
+            if key_b is None:
+                key_b = frames[(point[2], point[4])] = (
+                    self.name_of(point[2]), self.link_name(point[2], point[4]))
+            a, b = key_a[0], key_b[0]
+            if a is None or b is None or (a == b and a in fluids):
                 continue
-            key_a = (a, self.link_name(point[1], point[3]))
-            key_b = (b, self.link_name(point[2], point[4]))
             sign = 1.0 if key_a < key_b else -1.0
             key = (*key_a, *key_b) if sign > 0 else (*key_b, *key_a)
             groups.setdefault(key, []).append((point, sign))
         samples = []
         for key in sorted(groups):
             points = groups[key]
+            # Element by element the arithmetic of a loop over the points; the sums over
+            # them in their order (cumsum from zero, as sum() adds).
+            signs = np.array([s for _, s in points])[:, None]
             forces = np.array([p[9] for p, _ in points])
             total = float(forces.sum())
-            positions = np.array([(np.asarray(p[5]) + p[6]) / 2 for p, _ in points])
+            positions = (np.array([p[5] for p, _ in points])
+                         + np.array([p[6] for p, _ in points])) / 2
             weights = forces / total if total > 0 else np.full(len(points), 1 / len(points))
-            normal = sum(s * np.asarray(p[7]) * w for (p, s), w in zip(points, weights))
+            normal = _sequential_sum(signs * np.array([p[7] for p, _ in points])
+                                     * weights[:, None])
             norm = np.linalg.norm(normal)
-            friction = sum(s * (p[10] * np.asarray(p[11]) + p[12] * np.asarray(p[13]))
-                           for p, s in points)
+            friction = _sequential_sum(signs * (
+                np.array([p[10] for p, _ in points])[:, None]
+                * np.array([p[11] for p, _ in points])
+                + np.array([p[12] for p, _ in points])[:, None]
+                * np.array([p[13] for p, _ in points])))
             samples.append(ContactSample(
                 *key, position=tuple(weights @ positions),
                 normal=tuple(normal / norm) if norm > 0 else (0.0, 0.0, 1.0),
-                normal_force=total, friction=tuple(np.asarray(friction, dtype=float))))
+                normal_force=total, friction=tuple(friction)))
         return samples
 
     def _contact_points(self) -> list[Any]:
@@ -437,3 +453,8 @@ class Physics:
                     p = (*p[:11], tuple(-x for x in p[11]), p[12], tuple(-x for x in p[13]))
                 points.append(p)
         return points
+
+
+def _sequential_sum(rows: np.ndarray) -> np.ndarray:
+    """``sum(rows)``: 0 + row 0 + row 1 + ..., added in that order."""
+    return np.cumsum(np.vstack([np.zeros((1, rows.shape[1])), rows]), axis=0)[-1]
