@@ -138,8 +138,10 @@ def test_a_template_gives_the_bytes_of_rosbags_serializer(name):
         assert _numbers(decoded, template.variable) == values
 
 
-def test_a_bags_files_are_those_rosbags_writes(tmp_path):
-    """The writer's cached QoS and metadata.yaml layout give rosbags' own files."""
+@pytest.mark.parametrize('name', ['bag', 'a bag: #2'])
+def test_a_bags_files_are_those_rosbags_writes(tmp_path, name):
+    """The writer's cached QoS and metadata.yaml layout give rosbags' own files (a name
+    that YAML would quote is left to rosbags)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     from projection_server.bags import _definition, offered_qos
@@ -151,7 +153,7 @@ def test_a_bags_files_are_those_rosbags_writes(tmp_path):
         message = store.types[f'projection_interfaces/msg/{msgtype}'](
             **_defaults(store, f'projection_interfaces/msg/{msgtype}'))
         messages.append((topic, message, 1_000 * i + 7))
-    ours, theirs = tmp_path / 'ours' / 'bag', tmp_path / 'theirs' / 'bag'
+    ours, theirs = tmp_path / 'ours' / name, tmp_path / 'theirs' / name
     ours.parent.mkdir()
     theirs.parent.mkdir()
     with BagWriter(ours) as bag:
@@ -169,7 +171,7 @@ def test_a_bags_files_are_those_rosbags_writes(tmp_path):
     metadata = (ours / 'metadata.yaml').read_text()
     assert metadata == (theirs / 'metadata.yaml').read_text()
     assert 'message_count: 6' in metadata and 'nanoseconds_since_epoch: 7' in metadata
-    assert (ours / 'bag.mcap').read_bytes() == (theirs / 'bag.mcap').read_bytes()
+    assert (ours / f'{name}.mcap').read_bytes() == (theirs / f'{name}.mcap').read_bytes()
 
 
 def _defaults(store, msgtype):
