@@ -12,7 +12,9 @@ Runs the same projections twice in one process, alternating:
   object model computations, no monitoring, no bag).
 
 Prints the medians per program, the split of the pipeline into its parts, and the ratio
-pipeline / floor. Scenarios come from the knowledge base (``grasping``, ``pouring``).
+pipeline / floor, of wall time and of the CPU time of this process (on a machine shared
+with other work, CPU time is the steadier measure of what the pipeline itself costs).
+Scenarios come from the knowledge base (``grasping``, ``pouring``).
 
     tools/with_env.sh python bench/pipeline_overhead.py --repeat 3
 """
