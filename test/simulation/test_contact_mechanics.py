@@ -143,3 +143,34 @@ def test_cached_pad_solutions_are_within_the_models_own_tolerance(client, make_s
     held = solved > 1.0
     assert held.sum() > 300
     assert np.abs(cached[held] / solved[held] - 1.0).max() < tolerance / 2
+
+
+def test_the_written_out_arithmetic_is_the_loops_to_the_last_bit():
+    """The per-step sums and quaternion products are written out for speed; written out,
+    they must give the very floats of the loops they replace, or outcomes could move."""
+    from projection_server.simulation import object_models as om
+
+    def curvature_load_loop(force, a, point):
+        scale = math.sqrt(sum((x / s) ** 2 for x, s in zip(point, a)))
+        if scale == 0.0:
+            return force
+        radius = a[0] * a[1] * a[2] * sum((x / scale) ** 2 / s ** 4 for x, s in zip(point, a))
+        return force * cm.reference_radius(a) / radius
+
+    def rotate_loop(q, v):
+        x, y, z, _ = om._multiply(om._multiply(q, (*v, 0.0)), om._conjugate(q))
+        return (x, y, z)
+
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        a = tuple(float(x) for x in rng.uniform(0.01, 0.05, 3))
+        point = tuple(float(x) for x in rng.normal(0.0, 0.03, 3))
+        force = float(rng.uniform(0.0, 20.0))
+        assert cm.curvature_load(force, a, point) == curvature_load_loop(force, a, point)
+        q = rng.normal(size=4)
+        q = tuple(float(x) for x in q / np.linalg.norm(q))
+        r = rng.normal(size=4)
+        r = tuple(float(x) for x in r / np.linalg.norm(r))
+        assert om._rotate(q, point) == rotate_loop(q, point)
+        assert om._angle(q, r) == 2.0 * math.acos(min(1.0, abs(sum(
+            p * s for p, s in zip(q, r)))))
