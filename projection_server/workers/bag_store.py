@@ -20,6 +20,7 @@ import itertools
 import os
 from pathlib import Path
 import shutil
+import tempfile
 import threading
 from typing import Any, TYPE_CHECKING
 
@@ -30,7 +31,8 @@ if TYPE_CHECKING:
 
     from projection_server.simulation.job import Job
 
-__all__ = ['RESCAN_EVERY', 'BagStore', 'Retention', 'TMP_PREFIX']
+__all__ = ['RESCAN_EVERY', 'BagStore', 'Retention', 'TMP_PREFIX', 'private_tmp_dir',
+           'remove_orphans']
 
 TMP_PREFIX = '.tmp-'
 RESCAN_EVERY = 100   # new bags between two scans of the directory into a store's index
@@ -176,16 +178,29 @@ class BagStore:
 
     def remove_stale_tmp(self) -> None:
         """Delete temporary bags left by dead processes (crashes, kills)."""
-        for entry in self.bag_dir.glob(TMP_PREFIX + '*'):
-            try:
-                pid = int(entry.name[len(TMP_PREFIX):].split('-')[0])
-                os.kill(pid, 0)
-            except ValueError:
-                continue
-            except ProcessLookupError:
-                shutil.rmtree(entry, ignore_errors=True)
-            except PermissionError:   # alive, someone else's
-                continue
+        remove_orphans(self.bag_dir, TMP_PREFIX)
+
+
+def remove_orphans(parent: Path, prefix: str) -> None:
+    """Delete the directories ``parent/<prefix><pid>-...`` whose process is gone."""
+    for entry in parent.glob(prefix + '*'):
+        try:
+            pid = int(entry.name[len(prefix):].split('-')[0])
+            os.kill(pid, 0)
+        except ValueError:
+            continue
+        except ProcessLookupError:
+            shutil.rmtree(entry, ignore_errors=True)
+        except PermissionError:   # alive, someone else's
+            continue
+
+
+def private_tmp_dir(prefix: str) -> Path:
+    """A new directory ``<tmp>/<prefix><pid>-...`` of this process, after deleting those of
+    processes that are gone (a worker killed while it wrote there leaves its directory)."""
+    parent = Path(tempfile.gettempdir())
+    remove_orphans(parent, prefix)
+    return Path(tempfile.mkdtemp(prefix=f'{prefix}{os.getpid()}-', dir=parent))
 
 
 def touch(path: Path) -> None:

@@ -13,9 +13,10 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 import shutil
-import tempfile
 import time
 from typing import Any, TYPE_CHECKING
+
+from projection_server.workers.bag_store import private_tmp_dir
 
 if TYPE_CHECKING:
     from projection_server.simulation.runner import Simulator
@@ -45,7 +46,7 @@ def warm_up(simulator: Simulator, settings: Settings) -> dict[str, Any]:
     """Run the warm-up projection on ``simulator``; ``{'seconds': s, 'error': None}``, or
     the error's text instead of raising (a worker that could not warm up still serves)."""
     start = time.perf_counter()
-    tmp = Path(tempfile.mkdtemp(prefix='projection-warm-up-'))
+    tmp = private_tmp_dir('projection-warm-up-')
     try:
         job = warm_up_job()
         simulator.run(job, settings, tmp / 'bag')

@@ -220,3 +220,18 @@ def test_the_bag_store_counts_bags_other_processes_made_at_its_next_scan(
         os.utime(tmp_path / name, ns=(0, 0))
     _publish(store, 'c')   # the second since that scan: read again, 500 bytes
     assert sorted(p.name for p in tmp_path.iterdir()) == ['a', 'b', 'c']
+
+
+def test_private_temporary_directories_of_dead_processes_are_deleted(tmp_path, monkeypatch):
+    import tempfile
+
+    from projection_server.workers.bag_store import private_tmp_dir
+
+    monkeypatch.setattr(tempfile, 'tempdir', str(tmp_path))
+    gone = tmp_path / 'projection-test-999999999-x'   # no such process
+    gone.mkdir()
+    mine = private_tmp_dir('projection-test-')
+    assert mine.parent == tmp_path and mine.name.startswith(f'projection-test-{os.getpid()}-')
+    assert not gone.exists()
+    again = private_tmp_dir('projection-test-')
+    assert mine.exists() and again.exists()   # this process's own are kept

@@ -1,10 +1,12 @@
 """The Ray actor of the ``ray`` backend: one warm simulator in a Ray worker process.
 
 ROS-free on purpose (no rclpy: it may run on any machine of a cluster). Like the ``local``
-worker process it pays imports, the PyBullet connection and message type registration once,
-runs each projection in a fresh world and makes its timeline from the samples in memory.
-The bag is written into a private temporary directory on the actor's machine and sent back
-as bytes, so the node's bag directory needs no file system shared with the cluster. Every
+worker process it pays imports, the PyBullet connection, message type registration and a
+throw-away projection (:mod:`projection_server.workers.warm_up`) once, runs each projection
+in a fresh world and makes its timeline from the samples in memory. The bag is written
+into a private temporary directory on the actor's machine (one left by an actor killed
+meanwhile is deleted by the next projection there) and sent back as bytes, so the node's
+bag directory needs no file system shared with the cluster. Every
 method answers ``(result, ok)``; a failed projection's result is its
 :class:`~projection_server.simulation.errors.ProjectionError`.
 """
@@ -12,13 +14,12 @@ method answers ``(result, ok)``; a failed projection's result is its
 from __future__ import annotations
 
 import os
-from pathlib import Path
 import shutil
-import tempfile
 import traceback
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
+from projection_server.workers.bag_store import private_tmp_dir
 
 if TYPE_CHECKING:
     from projection_server.simulation.job import Job
@@ -65,7 +66,7 @@ class ProjectionActor:
         """Run ``job`` into a bag called ``name``; ``({file: bytes}, timeline)`` of it."""
         if self._error is not None:
             return self._error, False
-        tmp = Path(tempfile.mkdtemp(prefix='projection-'))
+        tmp = private_tmp_dir('projection-ray-')
         try:
             bag = tmp / name
             timeline = self._simulator.run(job, self._settings, bag)
