@@ -42,6 +42,7 @@ __all__ = [
     'cancel',
     'configure',
     'default_bag_dir',
+    'drop',
     'physics_settings',
     'prefetch',
     'programs',
@@ -215,6 +216,18 @@ def cancel(owner: str) -> int:
         backend = _backend
         _stops.setdefault(owner, threading.Event()).set()
     return backend.cancel(owner) if backend is not None else 0
+
+
+def drop(owner: str) -> int:
+    """Drop the queued projections that only ``owner`` asked for; how many.
+
+    For a query that has ended: what it prefetched and no longer needs (a ONCE query after
+    its solution, a closed INCREMENTAL one) leaves the workers to the next query. Running
+    ones finish and keep their bags for whoever asks for them again.
+    """
+    with _lock:
+        backend = _backend
+    return backend.cancel(owner, running=False) if backend is not None else 0
 
 
 def set_owner(owner: str | None) -> None:

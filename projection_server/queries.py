@@ -280,6 +280,7 @@ class QuerySession:
         finally:
             self._busy = False
             projection.set_owner(None)
+            projection.drop(self.owner)   # what it prefetched and will not ask for
             projection.release(self.owner)
             try:
                 prolog_bridge.detach_engine()

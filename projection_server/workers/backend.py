@@ -55,9 +55,10 @@ class WorkerBackend(Protocol):
             ProjectionError: ``invalid_parameters`` for a bad timeout, ``pool_closed``.
         """
 
-    def cancel(self, owner: str) -> int:
+    def cancel(self, owner: str, running: bool = True) -> int:
         """Cancel the queued and running jobs that only ``owner`` asked for; their futures
-        fail with kind ``cancelled``. Returns how many were cancelled."""
+        fail with kind ``cancelled``. Returns how many were cancelled. With ``running``
+        False, only the queued ones (running ones finish and keep their bags)."""
 
     def close(self) -> None:
         """Stop the workers; unfinished jobs fail with kind ``pool_closed``."""

@@ -82,15 +82,18 @@ class BackendBase(ABC):
     def _enqueue(self, request: Request) -> None:
         """Hand a new request to the workers (called with the lock)."""
 
-    def cancel(self, owner: str) -> int:
+    def cancel(self, owner: str, running: bool = True) -> int:
         """Cancel the unfinished projections that only ``owner`` asked for; how many.
 
         A queued one is dropped, a running one stops its worker (which is replaced); their
-        futures fail with kind ``cancelled``.
+        futures fail with kind ``cancelled``. With ``running`` False only the queued ones
+        are dropped: the running ones finish and their bags are kept.
         """
         cancelled = 0
         with self._lock:
             for request in self._requests.only_for(owner):
+                if not running and request.future.running():
+                    continue
                 request.cancelled = True
                 cancelled += 1
                 if not self._stop(request):   # queued: fails now; else when its worker ends

@@ -156,6 +156,20 @@ def test_a_queued_projection_of_a_cancelled_owner_fails_as_cancelled(pool, make_
     assert os.path.isdir(pool.run(job(make_scenario, 2.0), timeout=60.0))
 
 
+def test_dropping_an_owners_projections_spares_the_running_one(pool, make_scenario):
+    running = pool.submit(job(make_scenario, 3.1), timeout=60.0, owner='q/3')
+    deadline = time.monotonic() + 60.0
+    while not running.running():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    queued = pool.submit(job(make_scenario, 3.2), timeout=60.0, owner='q/3')
+    assert pool.cancel('q/3', running=False) == 1
+    with pytest.raises(ProjectionError) as info:
+        queued.result(timeout=60.0)
+    assert info.value.kind == 'cancelled'
+    assert os.path.isdir(running.result(timeout=60.0).bag)   # finished, and kept
+
+
 def test_a_worker_is_replaced_after_its_share_of_projections(make_scenario, tmp_path):
     from projection_server.workers.local import WorkerPool
 
