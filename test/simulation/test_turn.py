@@ -276,3 +276,19 @@ def test_a_flat_spatula_turns_the_pancake(pool):
     (interval,) = _fluent(timeline, 'upside_down')   # from the landing to the end
     assert interval[3] == timeline['meta']['duration']
     assert len([e for e in timeline['events'] if e[0] == 'flip']) == 1
+
+
+@pytest.mark.parametrize('angle, expected', [(0.4, 'ok'), (0.5, 'fail')])
+def test_the_turn_either_side_of_the_boundary_does_not_depend_on_the_time_step(
+        pool, angle, expected):
+    # Table III changes between 0.4 and 0.5 rad. Both cells must come out the same at the
+    # program's own settings (config/physics.yaml, programs.turn_pancake) and at a 2x finer
+    # step with 2x the solver iterations; bench/fidelity.py checks the whole table at 4x.
+    own = pool.settings.for_projection('turn_pancake').physics
+    finer = {'rate_hz': 2 * own.rate_hz, 'solver_iterations': 2 * own.solver_iterations}
+    outcomes = []
+    for physics in ({}, finer):
+        job = Job.checked(TURNING, 'turn_pancake', {'angle': angle}, physics)
+        timeline = translate_bag(pool.run(job, timeout=300.0))
+        outcomes.append('ok' if _fluent(timeline, 'upside_down') else 'fail')
+    assert outcomes == [expected, expected]

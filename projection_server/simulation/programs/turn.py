@@ -18,8 +18,9 @@ well as up, the more the steeper it is (normal force along ``(sin angle, cos ang
 against the pancake's friction on the maker. A flat blade slides under a pancake that stays
 nearly in place; a steep one gives it a forward speed the blade's friction cannot take out
 before the blade stops, so it slides off the blade's front edge while the blade is levelled
-and lifted, and the flip throws nothing over (with the knowledge base's values the change
-lies between 0.4 and 0.45 rad).
+and lifted, and the flip throws nothing over (with the knowledge base's values and the
+program's physics settings, ``programs.turn_pancake`` in config/physics.yaml, the change
+lies between 0.4 and 0.5 rad).
 """
 
 from __future__ import annotations
