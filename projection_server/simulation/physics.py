@@ -446,7 +446,7 @@ class Physics:
         solid = set(others)
         points = []
         for body in others:
-            for p in self.client.getContactPoints(bodyA=body):
+            for p in self.contact_points(body):   # a moving body's: asked this step already
                 if p[2] < body:
                     if p[2] in solid:
                         continue
