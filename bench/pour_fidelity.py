@@ -1,0 +1,132 @@
+"""The pour's cost and convergence, in-process: the pour's own settings against the settings
+it had before (the global ones, without config/physics.yaml's programs section) and against
+a finer reference, at points of Table II.
+
+Runs the knowledge base's pouring scenario (read from SWI-Prolog) with ``pour`` at each
+point three ways, in two processes, alternating: at the program's settings, at the global
+settings (``rate_hz`` and ``solver_iterations`` of the ``physics`` section) and at the
+reference (``--factor`` times the program's rate and iterations, as bench/fidelity.py).
+Prints per point the particles on the pan and spilled, the roundness and the CPU seconds of
+the process that simulated (build, stepping, log and timeline), then the medians, the
+speed-up over the global settings and how many counts agree with the reference within
+bench/fidelity.py's tolerances:
+
+    tools/with_env.sh python bench/pour_fidelity.py                  # 4 points
+    tools/with_env.sh python bench/pour_fidelity.py --points all --no-reference
+"""
+
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import ProcessPoolExecutor
+import itertools
+import os
+from pathlib import Path
+import platform
+import statistics
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from step_convergence import kb_scenario  # noqa: E402
+
+# (angle, hold, position): the no-hold pours are the hard case of convergence.
+POINTS = ((2.14, 0.0, 0.0), (1.84, 0.0, 0.0), (1.99, 0.5, 0.0), (2.14, 1.0, -0.09))
+
+
+def pour(job: tuple) -> tuple[tuple, str, dict, float]:
+    """One pour at ``physics`` (None: the program's settings); its measures and CPU s."""
+    from projection_server.simulation import Job, load_settings
+    from projection_server.simulation.runner import Simulator
+
+    scenario, point, name, physics = job
+    angle, hold, position = point
+    job_ = Job.checked(scenario, 'pour', {'angle': angle, 'time': hold, 'position': position},
+                       physics)
+    simulator = Simulator()
+    try:
+        with tempfile.TemporaryDirectory(prefix='pour-fidelity-') as tmp:
+            start = time.process_time()
+            timeline = simulator.run(job_, load_settings(), Path(tmp) / 'bag')
+            cpu = time.process_time() - start
+    finally:
+        simulator.close()
+    values = {(q[0], q[1][0]): q[2] for q in timeline['quantities']}
+    measures = {'pan': values.get(('particles_on', 'pancake_maker1')),
+                'spill': values.get(('particles_spilled', 'pancake_mix1')),
+                'round': values.get(('roundness', 'pancake_maker1'))}
+    return point, name, measures, cpu
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--points', default='four', choices=('four', 'all'),
+                        help="four points, or all 27 of Table II")
+    parser.add_argument('--factor', type=int, default=4, help="the reference's refinement")
+    parser.add_argument('--no-reference', action='store_true')
+    parser.add_argument('--no-global', action='store_true')
+    parser.add_argument('--workers', type=int, default=2)
+    args = parser.parse_args()
+
+    from projection_server.reproduce import paper
+    from projection_server.reproduce.fidelity import REFERENCE_TOLERANCES
+    from projection_server.simulation import load_settings
+
+    settings = load_settings()
+    own = settings.for_projection('pour').physics
+    configs = {'program': None}
+    if not args.no_global:
+        configs['global'] = {'rate_hz': settings.physics.rate_hz,
+                             'solver_iterations': settings.physics.solver_iterations}
+    if not args.no_reference:
+        configs['reference'] = {'rate_hz': own.rate_hz * args.factor,
+                                'solver_iterations': own.solver_iterations * args.factor}
+    points = (POINTS if args.points == 'four' else
+              [(a, h, x) for x, h, a in itertools.product(
+                  paper.POUR_POSITIONS, paper.POUR_TIMES, paper.POUR_ANGLES)])
+    scenario = kb_scenario('pouring')
+    jobs = [(scenario, point, name, physics)
+            for point in points for name, physics in configs.items()]
+    results: dict[tuple, dict[str, tuple[dict, float]]] = {}
+    start = time.monotonic()
+    with ProcessPoolExecutor(args.workers) as executor:
+        for point, name, measures, cpu in executor.map(pour, jobs):
+            results.setdefault(point, {})[name] = (measures, cpu)
+            print(f'  angle {point[0]:.2f}, hold {point[1]:.1f} s, position {point[2]:+.2f}, '
+                  f'{name:9s}: pan {measures["pan"]}, spill {measures["spill"]}, round '
+                  f'{_round(measures["round"])}, {cpu:.1f} CPU s', flush=True)
+    wall = time.monotonic() - start
+
+    print()
+    print("pour fidelity benchmark: the pour's settings vs the global settings and a "
+          f'{args.factor}x finer reference, in-process')
+    print(f'  settings: {len(points)} points, {args.workers} processes, python '
+          f'{platform.python_version()}, {os.cpu_count()} cores, load average '
+          f'{os.getloadavg()[0]:.1f} at the end, {wall:.0f} s wall')
+    for name, physics in configs.items():
+        chosen = physics or {'rate_hz': own.rate_hz, 'solver_iterations': own.solver_iterations}
+        cpus = [r[name][1] for r in results.values()]
+        print(f'  {name:9s} ({chosen["rate_hz"]} Hz, {chosen["solver_iterations"]} '
+              f'iterations): median {statistics.median(cpus):.2f} CPU s per pour '
+              f'(min {min(cpus):.2f}, max {max(cpus):.2f})')
+    if 'global' in configs:
+        ratios = [r['global'][1] / r['program'][1] for r in results.values()]
+        print(f'  speed-up over the global settings: median {statistics.median(ratios):.2f}x '
+              f'(CPU, per point: {", ".join(f"{x:.2f}" for x in ratios)})')
+    if 'reference' in configs:
+        for column in ('pan', 'spill'):
+            agree = sum(abs(r['program'][0][column] - r['reference'][0][column])
+                        <= REFERENCE_TOLERANCES[column](r['reference'][0][column]) + 1e-12
+                        for r in results.values())
+            print(f'  {column} within tolerance of the reference: {agree}/{len(results)}')
+    return 0
+
+
+def _round(value: float | None) -> str:
+    return '-' if value is None else f'{value:.2f}'
+
+
+if __name__ == '__main__':
+    sys.exit(main())
