@@ -49,7 +49,8 @@ class Simulator:
 
         The control program runs every ``steps_per_control`` physics steps and the monitor
         samples every ``steps_per_log`` steps, from the first step until the program's
-        duration.
+        duration, or until the first sample after which the task says it has ``finished``
+        (a task may end when what it set in motion has come to rest).
         """
         from projection_server.timeline.translate import translate_records
 
@@ -63,6 +64,7 @@ class Simulator:
         rate = settings.physics.rate_hz
         control, log = settings.control.steps_per_control, settings.control.steps_per_log
         steps = math.ceil(task.duration * rate - 1e-9)
+        finished = getattr(task, 'finished', None)
         with BagWriter(bag_path) as bag:
             monitor = Monitor(physics, bag)
             monitor.start({
@@ -77,6 +79,8 @@ class Simulator:
                 physics.step()
                 if physics.step_count % log == 0:
                     monitor.sample()
+                    if finished is not None and finished(physics):
+                        break
         return translate_records(monitor.records, bag_path)
 
     def close(self) -> None:

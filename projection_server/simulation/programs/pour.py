@@ -8,8 +8,10 @@ its side), holds that angle for ``time`` seconds, tilts back upright at the same
 particles settle. While it tilts, the lip is lowered as far as the cup's lowest point keeps its
 initial clearance above the maker, but not below :data:`POUR_HEIGHT` (a person pours batter
 from a few centimetres above the pan). The cup is moved kinematically: a fixed constraint
-pulls it to the commanded pose at every control step (no arm is simulated). Nothing in the
-program looks at the outcome.
+pulls it to the commanded pose at every physics step (no arm is simulated), so that it moves
+the same smooth path at every time step. Once the cup is upright again the pour ends as soon
+as the batter has come to rest (every particle slower than :data:`REST_SPEED`), after
+:data:`AFTER` seconds at the latest. Nothing in the program looks at where the batter is.
 """
 
 from __future__ import annotations
@@ -30,7 +32,8 @@ __all__ = ['PROGRAM', 'Pour']
 
 TILT_RATE = 2.0          # rad/s, tilting and tilting back (about 1 s to 2 rad, like a person)
 SETTLE = 0.3             # s for the fluid to settle in the upright cup before tilting
-AFTER = 0.8              # s for the poured fluid to settle after the cup is upright again
+AFTER = 0.8              # s at most for the poured fluid to settle after the cup is upright
+REST_SPEED = 0.01        # m/s: the batter is at rest when no particle moves faster
 POUR_HEIGHT = 0.03       # m, lowest height of the lip above the maker's top while pouring
 CUP_HOLD_FORCE = 500.0   # N, maximal force of the constraint that moves the cup
 
@@ -72,6 +75,18 @@ class Pour:
         self._constraint = c.createConstraint(
             self._cup, -1, -1, -1, c.JOINT_FIXED, (0, 0, 0), (0, 0, 0), self._centre)
         c.changeConstraint(self._constraint, self._centre, upright, maxForce=CUP_HOLD_FORCE)
+        # The constraint corrects the fraction erp of its error per physics step, so it
+        # trails a moving target by (1 - erp) / erp steps: each step it is given the pose
+        # that far ahead of the next step's, and the cup follows the commanded path itself
+        # (a target moved only at control steps made the cup jerk at the control rate, and
+        # the more so the finer the step: the batter was shaken out of it).
+        engine = physics.settings.physics
+        self._step = engine.time_step
+        self._lead = engine.time_step * (1.0 + (1.0 - engine.erp) / max(engine.erp, 1e-3))
+        self._physics = physics
+        self._half_height = height / 2
+        self._particles = [b for fluid in physics.fluids.values() for b in fluid.body_ids]
+        physics.step_hooks.append(self._follow)
 
     def tilt(self, t: float) -> float:
         """Commanded tilt angle [rad] at time ``t`` [s]."""
@@ -91,7 +106,27 @@ class Pour:
         return max(POUR_HEIGHT, self._clearance - lowest)
 
     def control(self, physics: Physics) -> None:
-        theta = self.tilt(physics.time)
+        if physics.step_count == 0:
+            self._command(self._lead)
+
+    def finished(self, physics: Physics) -> bool:
+        """Whether the pour is over: the cup is upright again and the batter that left it
+        (below the cup's bottom) has come to rest."""
+        if physics.time < self.upright:
+            return False
+        c = self._client
+        bottom = c.getBasePositionAndOrientation(self._cup)[0][2] - self._half_height
+        for body in self._particles:
+            if (c.getBasePositionAndOrientation(body)[0][2] < bottom
+                    and math.hypot(*c.getBaseVelocity(body)[0]) >= REST_SPEED):
+                return False
+        return True
+
+    def _follow(self) -> None:
+        self._command(self._physics.time + self._lead)
+
+    def _command(self, t: float) -> None:
+        theta = self.tilt(t)
         s, co = math.sin(theta), math.cos(theta)
         rotation = np.array([[co, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, co]])
         lip = self._lip.copy()

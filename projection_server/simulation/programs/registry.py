@@ -36,7 +36,11 @@ class Parameter:
 
 
 class Task(Protocol):
-    """One run of a program in a world: called at every control step until ``duration``."""
+    """One run of a program in a world: called at every control step until ``duration``.
+
+    A task may also have ``finished(physics) -> bool``, asked after every monitoring
+    sample: the projection ends at the first sample at which it is true.
+    """
 
     duration: float
 
