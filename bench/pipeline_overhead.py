@@ -8,8 +8,10 @@ Runs the same projections twice in one process, alternating:
   does), with a warm simulator (:class:`projection_server.simulation.runner.Simulator`);
 * **floor**: the same world and program, stepped bare (and once more with the object
   models, to tell their cost from the logging's): ``stepSimulation`` and, for each
-  body with an object model (the egg), one contact query per step; nothing else (no
-  object model computations, no monitoring, no bag).
+  body with an object model (the egg), one contact query per step, and the program's own
+  per-step commands and end (the pour's cup follows its path every step and the pour ends
+  once the batter is at rest); nothing else (no object model computations, no
+  monitoring, no bag).
 
 Prints the medians per program, the split of the pipeline into its parts, and the ratio
 pipeline / floor, of wall time and of the CPU time of this process (on a machine shared
@@ -81,9 +83,9 @@ def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
 
 
 def floor(client, job, settings, models: bool = False) -> tuple[float, float]:
-    """Bare stepping of the job's world and program: (wall, CPU seconds of this process);
-    with ``models``, each step also runs the object models (the egg's shell), still without
-    monitoring or bag."""
+    """Bare stepping of the job's world and program (its per-step commands and its end
+    included): (wall, CPU seconds of this process); with ``models``, each step also runs
+    the object models (the egg's shell), still without monitoring or bag."""
     from projection_server.simulation.programs import get as get_program
     from projection_server.simulation.scenario import parse_scenario
     from projection_server.simulation.world import build_world
@@ -95,19 +97,27 @@ def floor(client, job, settings, models: bool = False) -> tuple[float, float]:
     task = get_program(job.program).create(physics, parsed, dict(job.params),
                                            np.random.default_rng(0))
     steps = math.ceil(task.duration * settings.physics.rate_hz - 1e-9)
-    control = settings.control.steps_per_control
+    control, log = settings.control.steps_per_control, settings.control.steps_per_log
     modelled = [physics.body(model.name).body_id for model in physics.models]
     step_simulation, contact_points = client.stepSimulation, client.getContactPoints
+    # The program's own per-step commands (the pour's cup on its path) and its end at rest
+    # are the program: the floor runs them too. No monitor exists here, so these are all.
+    hooks = list(physics.step_hooks)
+    finished = getattr(task, 'finished', None)
     for step in range(steps):
         if step % control == 0:
             task.control(physics)
         if models:
             physics.step()
-            continue
-        step_simulation()
-        physics.step_count += 1
-        for body in modelled:
-            contact_points(bodyA=body)
+        else:
+            step_simulation()
+            physics.step_count += 1
+            for body in modelled:
+                contact_points(bodyA=body)
+            for hook in hooks:
+                hook()
+        if finished is not None and physics.step_count % log == 0 and finished(physics):
+            break
     return time.perf_counter() - start, time.process_time() - cpu
 
 

@@ -222,3 +222,11 @@ def test_the_report_shows_the_agreement_with_the_reference_beside_the_papers(tmp
                         references={'table3': reference}).read_text()
     assert '**6/6 cells agree**' in text
     assert 'Convergence: **6/6 cells agree with the reference (rate_hz 960' in text
+
+
+def test_a_comparison_summary_without_shown_cells_counts_the_differing_ones():
+    from projection_server.reproduce.experiments import Comparison, TABLE_I_GRASPING
+    differing = [((1, 0.0), 'outcome', 'slip', 'ok'), ((5, 0.02), 'outcome', 'ok', 'slip')]
+    comparison = Comparison(16, 18, differing, TABLE_I_GRASPING)
+    assert comparison.summary(limit=0) == '16/18 cells agree; differs at 2 cells'
+    assert comparison.summary(limit=1).endswith('; and 1 more')

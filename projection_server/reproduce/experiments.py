@@ -212,6 +212,8 @@ class Comparison:
             where = self._where(key, column)
             shown.append(f'{where}: paper {_show(theirs)}, ours {_show(ours)}')
         more = len(self.differences) - len(shown)
+        if not shown:
+            return f'{text}; differs at {more} cell{"s" if more > 1 else ""}'
         return (f'{text}; differs at ' + '; '.join(shown)
                 + (f'; and {more} more' if more > 0 else ''))
 
