@@ -12,10 +12,12 @@ from __future__ import annotations
 import enum
 import threading
 import time
+import uuid
 from typing import Any, Callable, TYPE_CHECKING
 
 from action_msgs.msg import GoalStatus
 from projection_interfaces.action import Project
+from unique_identifier_msgs.msg import UUID
 
 from projection_server.bindings import decode_solution
 from projection_server.client.prolog_client import (PrologClientError, PrologDeadlineError,
@@ -59,10 +61,19 @@ class ProjectTask:
         goal = Project.Goal(mode=Project.Goal.ONCE if once else Project.Goal.ALL_SOLUTIONS,
                             id=query_id, query=query, timeout=float(timeout),
                             max_solutions=max_solutions)
-        sent = action.send_goal_async(goal, feedback_callback=self._on_feedback)
-        self._handle = client.wait(sent, 'the ~/project action')
-        if not self._handle.accepted:
-            raise PrologClientError('the ~/project action refused the goal')
+        # The client routes this goal's feedback here, also feedback that comes with or
+        # after the result (rclpy's own feedback callback would drop it).
+        goal_uuid = UUID(uuid=list(uuid.uuid4().bytes))
+        self._uuid = bytes(goal_uuid.uuid)
+        client._track(self._uuid, self)
+        try:
+            sent = action.send_goal_async(goal, goal_uuid=goal_uuid)
+            self._handle = client.wait(sent, 'the ~/project action')
+            if not self._handle.accepted:
+                raise PrologClientError('the ~/project action refused the goal')
+        except BaseException:
+            client._track(self._uuid)
+            raise
         self._result_future = self._handle.get_result_async()
 
     def _on_feedback(self, message: Any) -> None:
@@ -121,11 +132,14 @@ class ProjectTask:
         # feedback may arrive just after the result; on a loaded machine (load 6 on 2
         # cores) more than a second after it.
         end = time.monotonic() + patience
-        while time.monotonic() < end:
-            with self._lock:
-                if self._received >= count:
-                    return
-            time.sleep(0.01)
+        try:
+            while time.monotonic() < end:
+                with self._lock:
+                    if self._received >= count:
+                        return
+                time.sleep(0.01)
+        finally:
+            self._client._track(self._uuid)
 
     def result(self, deadline: float | None = None) -> list[dict[str, Any]]:
         """The decoded solutions; raises :class:`PrologQueryError` (kind ``cancelled`` for

@@ -97,6 +97,8 @@ class PrologClient:
         self._finish = self._node.create_client(PrologFinish, f'{self.server}/finish')
         self._ping = self._node.create_client(Trigger, f'{self.server}/ping')
         self._action = None
+        self._project_tasks: dict[bytes, Any] = {}   # goal uuid -> ProjectTask
+        self._lock = threading.Lock()
         self.truncated = False  # the last all() was stopped at the solution cap
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self._node)
@@ -158,13 +160,34 @@ class PrologClient:
         if self._action is None:
             from projection_interfaces.action import Project
             from rclpy.action import ActionClient
+            from rclpy.qos import QoSProfile
             self._action = ActionClient(self._node, Project, f'{self.server}/project')
+            # rclpy's ActionClient drops a goal's feedback once its result is in, and the
+            # last projection's feedback often travels with the result: the tasks read
+            # the action's feedback topic themselves (with the ActionClient's QoS).
+            self._node.create_subscription(
+                Project.Impl.FeedbackMessage, f'{self.server}/project/_action/feedback',
+                self._on_project_feedback, QoSProfile(depth=10))
             if not self._action.wait_for_server(timeout_sec=self._service_timeout):
                 raise PrologClientError(f'action {self.server}/project is not available; '
                                         + server_hint(self.server))
         return ProjectTask(self, self._action, query, once=once, timeout=timeout,
                            max_solutions=max_solutions, query_id=self._new_id(),
                            feedback_callback=feedback_callback)
+
+    def _on_project_feedback(self, message) -> None:
+        with self._lock:
+            task = self._project_tasks.get(bytes(message.goal_id.uuid))
+        if task is not None:
+            task._on_feedback(message)
+
+    def _track(self, goal_uuid: bytes, task=None) -> None:
+        """Route the feedback of goal ``goal_uuid`` to ``task`` (None: no longer)."""
+        with self._lock:
+            if task is None:
+                self._project_tasks.pop(goal_uuid, None)
+            else:
+                self._project_tasks[goal_uuid] = task
 
     def finish(self, query_id: str) -> int:
         """Close the query ``query_id`` (or ``prefix*``) on the server; how many closed."""
