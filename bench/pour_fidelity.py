@@ -13,6 +13,8 @@ bench/fidelity.py's tolerances:
 
     tools/with_env.sh python bench/pour_fidelity.py                  # 4 points
     tools/with_env.sh python bench/pour_fidelity.py --points all --no-reference
+    tools/with_env.sh python bench/pour_fidelity.py --points misses --no-global \
+        --also 960/120 720/60          # how far equally fine settings differ
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from step_convergence import kb_scenario  # noqa: E402
 
 # (angle, hold, position): the no-hold pours are the hard case of convergence.
 POINTS = ((2.14, 0.0, 0.0), (1.84, 0.0, 0.0), (1.99, 0.5, 0.0), (2.14, 1.0, -0.09))
+# The small piles whose counts differ most from the 4x reference (bench/fidelity.py).
+MISSES = ((1.84, 0.0, -0.09), (1.84, 0.0, 0.07), (1.99, 0.0, 0.07), (1.84, 0.5, 0.07))
 
 
 def pour(job: tuple) -> tuple[tuple, str, dict, float]:
@@ -62,8 +66,12 @@ def pour(job: tuple) -> tuple[tuple, str, dict, float]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--points', default='four', choices=('four', 'all'),
-                        help="four points, or all 27 of Table II")
+    parser.add_argument('--points', default='four', choices=('four', 'all', 'misses'),
+                        help='four points, all 27 of Table II, or the four small piles '
+                             'whose counts differ most from the reference')
+    parser.add_argument('--also', nargs='*', default=[], metavar='HZ/ITERATIONS',
+                        help='more fine settings to run beside the reference (e.g. '
+                             '960/120 720/60): how much equally fine settings differ')
     parser.add_argument('--factor', type=int, default=4, help="the reference's refinement")
     parser.add_argument('--no-reference', action='store_true')
     parser.add_argument('--no-global', action='store_true')
@@ -83,9 +91,12 @@ def main() -> int:
     if not args.no_reference:
         configs['reference'] = {'rate_hz': own.rate_hz * args.factor,
                                 'solver_iterations': own.solver_iterations * args.factor}
-    points = (POINTS if args.points == 'four' else
-              [(a, h, x) for x, h, a in itertools.product(
-                  paper.POUR_POSITIONS, paper.POUR_TIMES, paper.POUR_ANGLES)])
+    for also in args.also:
+        rate, iterations = (int(v) for v in also.split('/'))
+        configs[also] = {'rate_hz': rate, 'solver_iterations': iterations}
+    points = {'four': POINTS, 'misses': MISSES}.get(args.points) or [
+        (a, h, x) for x, h, a in itertools.product(
+            paper.POUR_POSITIONS, paper.POUR_TIMES, paper.POUR_ANGLES)]
     scenario = kb_scenario('pouring')
     jobs = [(scenario, point, name, physics)
             for point in points for name, physics in configs.items()]
