@@ -122,6 +122,7 @@ class ProjectTask:
                     self._client.wait(self._result_future, 'the ~/project action', 5.0)
                 except PrologClientError:
                     pass
+            self._client._track(self._uuid)   # its feedback no longer matters
             if deadline is not None and time.monotonic() - start >= deadline:
                 raise PrologDeadlineError(f'no result within the deadline of {deadline:g} s;'
                                           ' the query was cancelled') from None

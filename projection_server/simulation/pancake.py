@@ -216,7 +216,6 @@ def build_pancake(physics: Physics, entity: Entity) -> None:
 
 
 def _collision_shape(c: Any, s: Segment, offset: np.ndarray) -> int:
-    yaw = c.getQuaternionFromEuler((0.0, 0.0, s.yaw))
     radial, tangential, thickness = s.size
     if s.kind == 'sphere':
         shift = offset - np.asarray(s.centre)

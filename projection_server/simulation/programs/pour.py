@@ -81,7 +81,6 @@ class Pour:
         # (a target moved only at control steps made the cup jerk at the control rate, and
         # the more so the finer the step: the batter was shaken out of it).
         engine = physics.settings.physics
-        self._step = engine.time_step
         self._lead = engine.time_step * (1.0 + (1.0 - engine.erp) / max(engine.erp, 1e-3))
         self._physics = physics
         self._half_height = height / 2
