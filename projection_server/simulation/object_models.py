@@ -77,27 +77,34 @@ class EggShell:
         self._cache_on = cache
         self._window: deque[float] = deque()
         self._window_sum = 0.0
-        self._window_steps = 0
+        self._window_steps = 1
         # (body, link) of a pad -> (force, shell pose in the face's frame, load) of its
         # last solution
         self._cache: dict[tuple[int, int], tuple[float, tuple[float, ...], Quat, float]] = {}
-        self._pads: dict[tuple[int, int], tuple[Gripper, Pad]] | None = None
+        self._pads: dict[tuple[int, int], tuple[Gripper, Pad]] = {}
+        self._pad_links: dict[int, list[int]] = {}   # gripper body -> its pads' links
+        self._body_id = -1
+        self._version = -1   # of the physics' bodies that the plan is of
 
     def after_step(self, physics: Physics) -> None:
         """Measure this step's load; break if the window's average reaches the limit."""
         if self.broken:
             self.load = 0.0
             return
-        if not self._window_steps:
-            self._window_steps = max(1, round(BREAK_WINDOW * physics.settings.physics.rate_hz))
+        if self._version != physics.bodies_version:
+            self._plan(physics)
         current = self._measure(physics)
-        self._window.append(current)
+        window = self._window
+        window.append(current)
         self._window_sum += current
-        if len(self._window) > self._window_steps:
-            self._window_sum -= self._window.popleft()
-        self.load = max(0.0, self._window_sum / self._window_steps)
-        self._peak = max(self._peak, self.load)
-        if self.breaking_force is not None and self.load >= self.breaking_force:
+        if len(window) > self._window_steps:
+            self._window_sum -= window.popleft()
+        load = self._window_sum / self._window_steps
+        # max(0.0, load) and max(peak, load), as comparisons
+        self.load = load = load if load > 0.0 else 0.0
+        if load > self._peak:
+            self._peak = load
+        if self.breaking_force is not None and load >= self.breaking_force:
             self.broken = True
             self._replace(physics, self.name)
 
@@ -106,12 +113,24 @@ class EggShell:
         peak, self._peak = self._peak, 0.0
         return peak, self.breaking_force or 0.0, self.broken
 
+    def _plan(self, physics: Physics) -> None:
+        """What the step needs of the world as it is now (once per change of its bodies)."""
+        self._body_id = physics.body(self.name).body_id
+        self._window_steps = max(1, round(BREAK_WINDOW * physics.settings.physics.rate_hz))
+        self._pads = {(g.body_id, pad.link): (g, pad)
+                      for g in physics.grippers.values() for pad in g.pads}
+        # A gripper's pad links, asked for in one query when any of its pads is touched.
+        self._pad_links = {}
+        for g in physics.grippers.values():
+            self._pad_links[g.body_id] = [pad.link for pad in g.pads]
+        self._version = physics.bodies_version
+
     def _measure(self, physics: Physics) -> float:
-        c = physics.client
-        body_id = physics.body(self.name).body_id
+        body_id = self._body_id
         points = physics.contact_points(body_id)
         if not points:
-            self._cache.clear()
+            if self._cache:
+                self._cache.clear()
             return 0.0
         # Plain floats: a step's handful of contacts costs less than numpy's overhead.
         groups: dict[tuple[int, int], list[float]] = {}
@@ -125,30 +144,37 @@ class EggShell:
                 group[1] += f * x
                 group[2] += f * y
                 group[3] += f * z
-        if self._pads is None:
-            self._pads = {(g.body_id, pad.link): (g, pad)
-                          for g in physics.grippers.values() for pad in g.pads}
-        for key in [k for k in self._cache if k not in groups]:
-            del self._cache[key]
+        cache = self._cache
+        if cache:
+            for key in [k for k in cache if k not in groups]:
+                del cache[key]
+        c = physics.client
         pos, orn = c.getBasePositionAndOrientation(body_id)
-        loads = []
+        pads, states = self._pads, None
+        largest = 0.0   # max(loads, default=0.0); the loads are not negative
         for key, (force, fx, fy, fz) in groups.items():
             if force <= 0.0:
                 continue
-            pad = self._pads.get(key)
-            load = (self._pad_load(c, key, pad[1], force, pos, orn) if pad is not None
-                    else None)
+            pad = pads.get(key)
+            load = None
+            if pad is not None:
+                if states is None:
+                    links = self._pad_links[key[0]]
+                    states = dict(zip(links, c.getLinkStates(key[0], links,
+                                                             computeForwardKinematics=True)))
+                load = self._pad_load(c, key, pad[1], states[key[1]], force, pos, orn)
             if load is None:
                 where = (fx / force - pos[0], fy / force - pos[1], fz / force - pos[2])
                 load = cm.curvature_load(force, self.semi_axes, _rotate(_conjugate(orn), where))
-            loads.append(load)
-        return max(loads, default=0.0)
+            if load > largest:
+                largest = load
+        return largest
 
-    def _pad_load(self, client: Any, key: tuple[int, int], pad: Pad, force: float,
-                  pos: tuple[float, float, float],
+    def _pad_load(self, client: Any, key: tuple[int, int], pad: Pad, state: Any,
+                  force: float, pos: tuple[float, float, float],
                   orn: tuple[float, float, float, float]) -> float | None:
-        """Equivalent load of a pad's contact; None if the pad is not over the shell."""
-        state = client.getLinkState(key[0], key[1], computeForwardKinematics=True)
+        """Equivalent load of a pad's contact (the pad link's ``state``); None if the pad is
+        not over the shell."""
         inverse = _conjugate(state[5])
         (px, py, pz), (qx, qy, qz) = pos, state[4]
         offset = _rotate(inverse, (px - qx, py - qy, pz - qz))
