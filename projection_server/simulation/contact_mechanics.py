@@ -26,6 +26,7 @@ critical load is proportional to the indenter's radius.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Sequence
 
@@ -44,6 +45,7 @@ __all__ = [
 
 _GRID = 40            # grid points per axis of the pad window
 _MIN_ACTIVE = 80      # fewer loaded grid points than this: refine the window
+_HEAD = 400           # gaps sorted at first: more than a patch of a grid window loads
 
 
 def reference_radius(semi_axes: tuple[float, float, float]) -> float:
@@ -98,10 +100,9 @@ def ellipsoid_gaps(semi_axes: tuple[float, float, float], rot: np.ndarray, pos: 
     qb = 2.0 * (x0 @ d)
     qc = np.einsum('ij,ij->i', x0, x0) - 1.0
     disc = qb * qb - 4.0 * qa * qc
-    gaps = np.full(len(points), np.inf)
     hit = disc >= 0.0
-    gaps[hit] = (-qb[hit] - np.sqrt(disc[hit])) / (2.0 * qa)
-    return gaps
+    # Where the ray hits, the root of the disc itself (no masked copies of the arrays).
+    return np.where(hit, (-qb - np.sqrt(np.maximum(disc, 0.0))) / (2.0 * qa), np.inf)
 
 
 def rim_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: np.ndarray,
@@ -141,14 +142,32 @@ def winkler_indentation(gaps: np.ndarray, cell_area: float, force: float,
     Returns ``(delta, number of loaded cells)``. Exact for the discretized face: with the
     gaps sorted, the force is piecewise linear in ``delta``.
     """
-    g = np.sort(gaps[np.isfinite(gaps)])
+    g = gaps[np.isfinite(gaps)]
     if g.size == 0:
         return math.inf, 0
-    j = np.arange(1, g.size + 1)
-    delta = (force / (stiffness * cell_area) + np.cumsum(g)) / j
-    upper = np.append(g[1:], np.inf)
-    first = int(np.argmax(delta <= upper))
-    return float(delta[first]), first + 1
+    # Only the smallest gaps can be loaded: sorted, they are the first ones of the whole
+    # sort, and so are their cumulative sums. Unless the balance lies beyond them, that is
+    # the answer of the full sort, to the bit; otherwise the full sort gives it.
+    for head in (_HEAD, g.size):
+        if head < g.size:
+            part = np.partition(g, head)[:head + 1]
+            part.sort()
+        else:
+            part = np.sort(g)
+        n = min(head, g.size)
+        ranked = part[:n]
+        delta = (force / (stiffness * cell_area) + np.cumsum(ranked)) / _ranks(n)
+        upper = np.append(part[1:n], np.inf) if n == g.size else part[1:n + 1]
+        below = delta <= upper
+        first = int(np.argmax(below))
+        if below[first]:
+            return float(delta[first]), first + 1
+    raise AssertionError('the force balances below the largest gap')   # pragma: no cover
+
+
+@functools.lru_cache(maxsize=8)
+def _ranks(n: int) -> np.ndarray:
+    return np.arange(1, n + 1)
 
 
 def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: np.ndarray,
@@ -190,10 +209,8 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
     grown = False
     for _ in range(12):
         lo, hi = np.maximum(centre - half, -h), np.minimum(centre + half, h)
-        u, v = np.linspace(lo[0], hi[0], _GRID), np.linspace(lo[1], hi[1], _GRID)
-        uu, vv = np.meshgrid(u, v, indexing='ij')
-        points = (face_centre + uu.reshape(-1, 1) * face_axes[0]
-                  + vv.reshape(-1, 1) * face_axes[1])
+        u, v = _linspace(lo, hi).T
+        points = _grid_points(face_centre, face_axes, u, v)
         gaps = ellipsoid_gaps(semi_axes, rot, pos, points, face_normal)
         if not np.isfinite(gaps).any():
             return None
@@ -214,3 +231,27 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
             continue
         break
     return stiffness * (delta - float(gaps[np.isfinite(gaps)].min()))
+
+
+def _linspace(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``np.linspace(lo[k], hi[k], _GRID)`` as the columns of one array, with numpy's
+    arithmetic (start + i * step, the last point the end itself)."""
+    step = (hi - lo) / (_GRID - 1)
+    if not step.all():   # numpy's own way with steps that underflow
+        return np.stack([np.linspace(a, b, _GRID) for a, b in zip(lo, hi)], axis=1)
+    grid = _steps(_GRID) * step + lo
+    grid[-1] = hi
+    return grid
+
+
+def _grid_points(centre: np.ndarray, axes: np.ndarray, u: np.ndarray,
+                 v: np.ndarray) -> np.ndarray:
+    """The points ``centre + u[i] axes[0] + v[j] axes[1]`` (row i * len(v) + j), added in
+    that order, as from a meshgrid of ``u`` and ``v``, but from the rows of the terms."""
+    return ((centre + u[:, None] * axes[0])[:, None, :]
+            + (v[:, None] * axes[1])[None, :, :]).reshape(-1, 3)
+
+
+@functools.lru_cache(maxsize=8)
+def _steps(n: int) -> np.ndarray:
+    return np.arange(n, dtype=float)[:, None]

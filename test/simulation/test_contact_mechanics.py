@@ -174,3 +174,50 @@ def test_the_written_out_arithmetic_is_the_loops_to_the_last_bit():
         assert om._rotate(q, point) == rotate_loop(q, point)
         assert om._angle(q, r) == 2.0 * math.acos(min(1.0, abs(sum(
             p * s for p, s in zip(q, r)))))
+
+
+def test_the_pad_grids_arithmetic_is_numpys_plain_one_to_the_last_bit():
+    """The pad's grid is built, solved and sorted with fewer array operations than the
+    plain numpy way (linspace, meshgrid, masked roots, a full sort); each must give the very
+    floats of the plain way, or loads, and with them outcomes, could move."""
+    def gaps_masked(semi_axes, rot, pos, points, direction):
+        inv = 1.0 / np.asarray(semi_axes)
+        x0 = ((points - pos) @ rot) * inv
+        d = (rot.T @ direction) * inv
+        qa, qb = float(d @ d), 2.0 * (x0 @ d)
+        disc = qb * qb - 4.0 * qa * (np.einsum('ij,ij->i', x0, x0) - 1.0)
+        gaps = np.full(len(points), np.inf)
+        hit = disc >= 0.0
+        gaps[hit] = (-qb[hit] - np.sqrt(disc[hit])) / (2.0 * qa)
+        return gaps
+
+    def indentation_sorted(gaps, cell_area, force, stiffness):
+        g = np.sort(gaps[np.isfinite(gaps)])
+        delta = (force / (stiffness * cell_area) + np.cumsum(g)) / np.arange(1, g.size + 1)
+        first = int(np.argmax(delta <= np.append(g[1:], np.inf)))
+        return float(delta[first]), first + 1
+
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        lo = rng.uniform(-0.02, 0.0, 2)
+        hi = lo + rng.uniform(1e-4, 0.03, 2)
+        grid = cm._linspace(lo, hi)
+        for k in range(2):
+            assert np.array_equal(grid[:, k], np.linspace(lo[k], hi[k], cm._GRID))
+        u, v = grid.T
+        centre = rng.normal(0.0, 0.05, 3)
+        axes = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        uu, vv = np.meshgrid(u, v, indexing='ij')
+        assert np.array_equal(cm._grid_points(centre, axes[:2], u, v),
+                              centre + uu.reshape(-1, 1) * axes[0]
+                              + vv.reshape(-1, 1) * axes[1])
+        points = cm._grid_points(centre, axes[:2], u, v)
+        semi_axes = tuple(rng.uniform(0.01, 0.04, 3))
+        pos = centre + rng.normal(0.0, 0.01, 3) - 0.03 * axes[2]
+        gaps = cm.ellipsoid_gaps(semi_axes, axes, pos, points, axes[2])
+        assert np.array_equal(gaps, gaps_masked(semi_axes, axes, pos, points, axes[2]))
+        if np.isfinite(gaps).any():
+            force = float(rng.uniform(0.01, 50.0))
+            cell = float(rng.uniform(1e-8, 1e-6))
+            assert cm.winkler_indentation(gaps, cell, force, 1e9) == \
+                indentation_sorted(gaps, cell, force, 1e9)
