@@ -79,6 +79,7 @@ class Monitor:
         self._link_states = client.getLinkStates
         self._multiply = client.multiplyTransforms
         self._invert = client.invertTransform
+        self._clock_pack = _clock_template().pack
 
     def start(self, info: dict[str, str]) -> None:
         """t = 0: the projection's description, the static poses and the shapes."""
@@ -92,11 +93,12 @@ class Monitor:
             _transform(0, *frame) for frame in static]), 0)
         self.records.append(Record('tf_static', 0, static))
         self._markers(0)
-        self._particles(0, 0, 0)
+        if self.physics.fluids:
+            self.bag.write_sample(0, [self._particles(0, 0, 0)])
 
     def sample(self) -> None:
         """One monitoring step: poses, contacts, grippers and object states."""
-        physics, write, records = self.physics, self.bag.write_cdr, self.records
+        physics, records = self.physics, self.records
         t = physics.time_ns
         sec, nanosec = divmod(t, 1_000_000_000)
         if physics.shapes_changed:
@@ -106,37 +108,39 @@ class Monitor:
         values: list[Any] = []
         for position, orientation in poses:
             values += (sec, nanosec, *position, *orientation)
-        write(TOPICS['tf'], 'tf2_msgs/msg/TFMessage', self._tf_pack(values), t)
-        records.append(Record('tf', t, [(parent, child, *pose) for (parent, child), pose
+        messages = [(TOPICS['tf'], 'tf2_msgs/msg/TFMessage', self._tf_pack(values)),
+                    (TOPICS['clock'], 'rosgraph_msgs/msg/Clock',
+                     self._clock_pack((sec, nanosec)))]
+        records.append(Record('tf', t, [(parent, child, position, orientation)
+                                        for (parent, child), (position, orientation)
                                         in zip(self._tf, poses)]))
-        write(TOPICS['clock'], 'rosgraph_msgs/msg/Clock',
-              _clock_template().pack((sec, nanosec)), t)
-        self._particles(t, sec, nanosec)
+        if physics.fluids:
+            messages.append(self._particles(t, sec, nanosec))
         contacts = self.contacts.take()
         values = [sec, nanosec]
         for c in contacts:
             values += (*c.position, *c.normal, c.normal_force, *c.friction)
-        template = _contacts_template(tuple((c.body_a, c.link_a, c.body_b, c.link_b)
-                                            for c in contacts))
-        write(TOPICS['contacts'], template.msgtype, template.pack(values), t)
-        records.append(Record('contacts', t, [
-            (c.body_a, c.link_a, c.body_b, c.link_b, c.normal_force, float(c.normal[2]))
-            for c in contacts]))
+        pairs = tuple(_pair_of(c) for c in contacts)
+        template = _contacts_template(pairs)
+        messages.append((TOPICS['contacts'], template.msgtype, template.pack(values)))
+        records.append(Record('contacts', t, [(*pair, c.normal_force, float(c.normal[2]))
+                                              for pair, c in zip(pairs, contacts)]))
         for gripper in physics.grippers.values():
-            template = _gripper_template(gripper.name, gripper.command,
-                                         tuple(gripper.finger_links))
+            fingers = tuple(gripper.finger_links)
+            template = _gripper_template(gripper.name, gripper.command, fingers)
             opening, measured_force = gripper.state()
-            write(TOPICS['gripper'], template.msgtype, template.pack((
-                sec, nanosec, opening, gripper.commanded_force, measured_force)), t)
+            messages.append((TOPICS['gripper'], template.msgtype, template.pack((
+                sec, nanosec, opening, gripper.commanded_force, measured_force))))
             records.append(Record('gripper', t, (gripper.name, gripper.command,
-                                                 gripper.finger_links)))
+                                                 list(fingers))))
         states = [(model.name, *model.sample()) for model in physics.models]
         values = [sec, nanosec]
         for _, load, limit, broken in states:
             values += (load, limit, broken)
         template = _objects_template(tuple(state[0] for state in states))
-        write(TOPICS['objects'], template.msgtype, template.pack(values), t)
+        messages.append((TOPICS['objects'], template.msgtype, template.pack(values)))
         records.append(Record('objects', t, states))
+        self.bag.write_sample(t, messages)
 
     # --- the sample's parts -------------------------------------------------------------
     def _poses(self) -> list[tuple[Any, Any]]:
@@ -157,9 +161,13 @@ class Monitor:
                 poses += [(state[4], state[5]) for state in states]
                 continue
             world = {-1: base}
+            inverse: dict[int, Any] = {}   # of a parent's world pose, once per sample
             for (link, parent), state in zip(chain, states):
                 world[link] = pose = (state[4], state[5])
-                poses.append(multiply(*invert(*world[parent]), *pose))
+                inverted = inverse.get(parent)
+                if inverted is None:
+                    inverted = inverse[parent] = invert(*world[parent])
+                poses.append(multiply(*inverted, *pose))
         return poses
 
     def _plan(self) -> None:
@@ -195,9 +203,8 @@ class Monitor:
             'visualization_msgs/msg/MarkerArray', markers=markers), t)
         self.physics.shapes_changed = False
 
-    def _particles(self, t: int, sec: int, nanosec: int) -> None:
-        if not self.physics.fluids:
-            return
+    def _particles(self, t: int, sec: int, nanosec: int) -> tuple[str, str, bytes]:
+        """The fluids' particles at ``t``: recorded, and their message returned."""
         fluids = tuple(self.physics.fluids.values())
         positions = {fluid.name: self.physics.particle_positions(fluid.name)
                      for fluid in fluids}
@@ -207,8 +214,8 @@ class Monitor:
         template = _particles_template(tuple(
             (fluid.name, fluid.radius, fluid.color, len(positions[fluid.name]))
             for fluid in fluids))
-        self.bag.write_cdr(TOPICS['markers'], template.msgtype, template.pack(values), t)
         self.records.append(Record('particles', t, positions))
+        return TOPICS['markers'], template.msgtype, template.pack(values)
 
 
 # --- message layouts (per process) and parts -----------------------------------------------
@@ -362,11 +369,9 @@ class ContactAggregator:
                 if pair is None:
                     continue
                 key, sign, turned = pair
-                f = point[9]
-                (xa, ya, za), (xb, yb, zb) = point[5], point[6]
+                (_, _, _, _, _, (xa, ya, za), (xb, yb, zb), (nx, ny, nz), _, f,
+                 f1, (d1x, d1y, d1z), f2, (d2x, d2y, d2z)) = point
                 x, y, z = (xa + xb) / 2, (ya + yb) / 2, (za + zb) / 2
-                nx, ny, nz = (sign * v for v in point[7])
-                f1, (d1x, d1y, d1z), f2, (d2x, d2y, d2z) = point[10:14]
                 if turned:
                     # Asked from the later of a pair's bodies, PyBullet turns the normal round
                     # but not the friction directions.
@@ -374,23 +379,37 @@ class ContactAggregator:
                 row = sums.get(key)
                 if row is None:
                     row = sums[key] = [0.0] * 17
-                row[0] += f
-                row[1] += f * x
-                row[2] += f * y
-                row[3] += f * z
-                row[4] += f * nx
-                row[5] += f * ny
-                row[6] += f * nz
+                # Bullet's normal forces are finite and not negative: a pair's force-
+                # weighted sums are all a sample needs once a point carries force, and its
+                # plain sums otherwise (those of all its points, none of which carries
+                # any). A point without force would add 0 to weighted sums never -0.
+                if f > 0.0:
+                    row[0] += f
+                    row[1] += f * x
+                    row[2] += f * y
+                    row[3] += f * z
+                    row[4] += f * (sign * nx)
+                    row[5] += f * (sign * ny)
+                    row[6] += f * (sign * nz)
                 row[7] += sign * (f1 * d1x + f2 * d2x)
                 row[8] += sign * (f1 * d1y + f2 * d2y)
                 row[9] += sign * (f1 * d1z + f2 * d2z)
-                row[10] += 1
-                row[11] += x
-                row[12] += y
-                row[13] += z
-                row[14] += nx
-                row[15] += ny
-                row[16] += nz
+                if not f > 0.0:
+                    if f != 0.0:   # not from Bullet: every sum
+                        row[0] += f
+                        row[1] += f * x
+                        row[2] += f * y
+                        row[3] += f * z
+                        row[4] += f * (sign * nx)
+                        row[5] += f * (sign * ny)
+                        row[6] += f * (sign * nz)
+                    row[10] += 1
+                    row[11] += x
+                    row[12] += y
+                    row[13] += z
+                    row[14] += sign * nx
+                    row[15] += sign * ny
+                    row[16] += sign * nz
 
     def _replan(self) -> None:
         """The bodies to ask for contacts (of the world as it is now), once per change."""
@@ -421,6 +440,7 @@ class ContactAggregator:
         sorted by link pair; starts a new period."""
         steps = max(1, self._steps)
         out = []
+        array = np.array
         for key, row in self._sums.items():
             total = row[0]
             if total > 0:
@@ -429,7 +449,7 @@ class ContactAggregator:
             else:
                 position = (row[11] / row[10], row[12] / row[10], row[13] / row[10])
                 nx, ny, nz = row[14:17]
-            vector = np.array((nx, ny, nz))
+            vector = array((nx, ny, nz))
             norm = math.sqrt(vector.dot(vector))   # what np.linalg.norm computes
             out.append(ContactSample(
                 *key, position=position,
@@ -442,7 +462,12 @@ class ContactAggregator:
                     if c.body_a in fluids or c.body_b in fluids]
         self._sums = {}
         self._steps = 0
-        return sorted(out, key=lambda c: (c.body_a, c.link_a, c.body_b, c.link_b))
+        out.sort(key=_pair_of)
+        return out
+
+
+def _pair_of(contact: ContactSample) -> tuple[str, str, str, str]:
+    return contact.body_a, contact.link_a, contact.body_b, contact.link_b
 
 
 def _link_frame(body: Body, link: int) -> str:

@@ -174,6 +174,44 @@ def test_a_bags_files_are_those_rosbags_writes(tmp_path, name):
     assert (ours / f'{name}.mcap').read_bytes() == (theirs / f'{name}.mcap').read_bytes()
 
 
+def test_a_samples_messages_written_at_once_are_the_bytes_of_rosbags_writer(tmp_path):
+    """``write_sample`` (a monitoring step's messages in one call, topics new and old, and
+    chunks that fill up in the middle of a sample) writes rosbags' own files."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from projection_server.bags import offered_qos
+
+    store = typestore()
+    msgtype = 'projection_interfaces/msg/ProjectionInfo'
+    samples = []
+    for i in range(40):
+        fields = _defaults(store, msgtype)
+        fields['scenario_json'] = 'x' * (30_000 + 977 * i)   # 1 MiB chunks fill up
+        message = store.types[msgtype](**fields)
+        data = bytes(store.serialize_cdr(message, msgtype))
+        topics = ['/a', '/b'] + (['/c'] if i >= 3 else []) + (['/b'] if i % 2 else [])
+        samples.append((1_000 * i + 7, [(topic, msgtype, data) for topic in topics]))
+    ours, theirs = tmp_path / 'ours' / 'bag', tmp_path / 'theirs' / 'bag'
+    ours.parent.mkdir()
+    theirs.parent.mkdir()
+    with BagWriter(ours) as bag:
+        for t, messages in samples:
+            bag.write_sample(t, messages)
+    with Writer(theirs, version=9, storage_plugin=StoragePlugin.MCAP) as bag:
+        connections = {}
+        for t, messages in samples:
+            for topic, msgtype, data in messages:
+                if topic not in connections:
+                    connections[topic] = bag.add_connection(
+                        topic, msgtype, typestore=store,
+                        offered_qos_profiles=[offered_qos(topic)])
+                bag.write(connections[topic], t, data)
+    assert (ours / 'metadata.yaml').read_text() == (theirs / 'metadata.yaml').read_text()
+    mcap = (ours / 'bag.mcap').read_bytes()
+    assert len(mcap) > 3 * 2**20
+    assert mcap == (theirs / 'bag.mcap').read_bytes()
+
+
 def _defaults(store, msgtype):
     from rosbags.interfaces import Nodetype
 
