@@ -59,7 +59,6 @@ The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass, field
 import json
 import math
 import os
@@ -98,18 +97,24 @@ class _Object(NamedTuple):
     broken: bool
 
 
-@dataclass
 class _Sample:
-    """What one monitoring step logged."""
+    """What one monitoring step logged (a plain class with slots: one per sample)."""
 
-    t: float
-    poses: _Poses = field(default_factory=lambda: _Poses())
-    moving: set[str] = field(default_factory=set)
-    # (body_a, link_a, body_b, link_b, normal force, normal z)
-    contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
-    grippers: dict[str, _Gripper] = field(default_factory=dict)
-    objects: dict[str, _Object] = field(default_factory=dict)
-    particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
+    __slots__ = ('t', 'poses', 'moving', 'contacts', 'grippers', 'objects', 'particles')
+
+    def __init__(self, t: float, poses: _Poses | None = None, moving: set[str] | None = None,
+                 contacts: list[tuple[str, str, str, str, float, float]] | None = None,
+                 grippers: dict[str, _Gripper] | None = None,
+                 objects: dict[str, _Object] | None = None,
+                 particles: dict[str, np.ndarray] | None = None):
+        self.t = t
+        self.poses = _Poses() if poses is None else poses
+        self.moving = set() if moving is None else moving
+        # (body_a, link_a, body_b, link_b, normal force, normal z)
+        self.contacts = [] if contacts is None else contacts
+        self.grippers = {} if grippers is None else grippers
+        self.objects = {} if objects is None else objects
+        self.particles = {} if particles is None else particles   # fluid -> (n, 3)
 
 
 def translate_bag(path: str | os.PathLike[str]) -> dict[str, Any]:
@@ -364,11 +369,11 @@ def _composed(entry: list[Any]) -> tuple[np.ndarray, np.ndarray]:
     return pose
 
 
-def _upside_down(sample: _Sample, body: str) -> bool:
+def _upside_down(sample: _Sample, body: str, references: list[str]) -> bool:
     """Whether the segments of ``body`` (its frame and link frames ``body/...``, with the
-    reference links of :data:`~projection_server.simulation.pancake.REFERENCE_LINKS`) are
-    upside down; False for bodies without them."""
-    a, b = (sample.poses.get(f'{body}/{link}') for link in REFERENCE_LINKS)
+    reference links of :data:`~projection_server.simulation.pancake.REFERENCE_LINKS`, whose
+    frames are ``references``) are upside down; False for bodies without them."""
+    a, b = (sample.poses.get(name) for name in references)
     if a is None or b is None or body not in sample.poses:
         return False
     positions = [pose[0] for name, pose in sample.poses.items()
@@ -414,6 +419,10 @@ class _Timeline:
     # --- fluents ------------------------------------------------------------------------
     def _sample_fluents(self) -> None:
         cos_support = math.cos(self.settings.support_max_angle)
+        booleans = self._booleans
+        supports: list[tuple[str, tuple[str, ...]]] = []   # the supported_by keys
+        references = {body: [f'{body}/{link}' for link in REFERENCE_LINKS]
+                      for body in self.bodies}
         for i, sample in enumerate(self.samples):
             touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
             held: set[str] = set()
@@ -426,21 +435,24 @@ class _Timeline:
                 for obj, support, up in ((body_a, body_b, normal_z),
                                          (body_b, body_a, -normal_z)):
                     if support not in self.grippers and up >= cos_support:
-                        self._booleans[('supported_by', (obj, support))][i] = True
+                        key = ('supported_by', (obj, support))
+                        if key not in booleans:   # in the order they are first seen
+                            supports.append(key)
+                        booleans[key][i] = True
             for name, gripper in sample.grippers.items():
                 fingers = {(name, link) for link in gripper.finger_links}
                 for obj, links in touching.items():
                     if fingers and fingers <= links:
                         held.add(obj)
                         self._booleans[('in_gripper', (obj,))][i] = True
-            for key in [k for k in self._booleans if k[0] == 'supported_by']:
-                if self._booleans[key][i] and key[1][0] not in held:
-                    self._booleans[('on', key[1])][i] = True
+            for key in supports:
+                if booleans[key][i] and key[1][0] not in held:
+                    booleans[('on', key[1])][i] = True
             for name, state in sample.objects.items():
                 if state.broken:
                     self._booleans[('broken', (name,))][i] = True
             for body in self.bodies:
-                if _upside_down(sample, body):
+                if _upside_down(sample, body, references[body]):
                     self._booleans[('upside_down', (body,))][i] = True
 
     def fluents(self) -> list[list[Any]]:
