@@ -80,6 +80,8 @@ class Monitor:
         self._multiply = client.multiplyTransforms
         self._invert = client.invertTransform
         self._clock_pack = _clock_template().pack
+        self._grippers: dict[tuple[Any, str], tuple[Any, tuple[str, str, list[str]]]] = {}
+        self._objects: tuple[tuple[str, ...] | None, Any] = (None, None)   # names, their pack
 
     def start(self, info: dict[str, str]) -> None:
         """t = 0: the projection's description, the static poses and the shapes."""
@@ -126,19 +128,26 @@ class Monitor:
         records.append(Record('contacts', t, [(*pair, c.normal_force, float(c.normal[2]))
                                               for pair, c in zip(pairs, contacts)]))
         for gripper in physics.grippers.values():
-            fingers = tuple(gripper.finger_links)
-            template = _gripper_template(gripper.name, gripper.command, fingers)
+            command = gripper.command
+            layout = self._grippers.get((gripper, command))
+            if layout is None:   # a gripper's layout of each command, made once
+                fingers = tuple(gripper.finger_links)
+                layout = self._grippers[(gripper, command)] = (
+                    _gripper_template(gripper.name, command, fingers).pack,
+                    (gripper.name, command, list(fingers)))
             opening, measured_force = gripper.state()
-            messages.append((TOPICS['gripper'], template.msgtype, template.pack((
+            messages.append((TOPICS['gripper'], _MSG + 'GripperState', layout[0]((
                 sec, nanosec, opening, gripper.commanded_force, measured_force))))
-            records.append(Record('gripper', t, (gripper.name, gripper.command,
-                                                 list(fingers))))
+            records.append(Record('gripper', t, layout[1]))
         states = [(model.name, *model.sample()) for model in physics.models]
         values = [sec, nanosec]
         for _, load, limit, broken in states:
             values += (load, limit, broken)
-        template = _objects_template(tuple(state[0] for state in states))
-        messages.append((TOPICS['objects'], template.msgtype, template.pack(values)))
+        names = tuple(state[0] for state in states)
+        if names != self._objects[0]:
+            self._objects = names, _objects_template(names).pack
+        messages.append((TOPICS['objects'], _MSG + 'ObjectStateArray',
+                         self._objects[1](values)))
         records.append(Record('objects', t, states))
         self.bag.write_sample(t, messages)
 
