@@ -368,9 +368,9 @@ class ContactAggregator:
         self._steps += 1
         if self._version != self.physics.bodies_version:
             self._replan()
-        pairs, sums, contact_points = self._pairs, self._sums, self.physics.contact_points
-        for body in self._bodies:
-            for point in contact_points(body):
+        pairs, sums, bodies = self._pairs, self._sums, self._bodies
+        for body, points in zip(bodies, self.physics.contact_points_of(bodies)):
+            for point in points:
                 pair_key = (body, point[3], point[2], point[4])
                 pair = pairs.get(pair_key, False)
                 if pair is False:

@@ -364,6 +364,17 @@ class Physics:
                 bodyA=body_id)
         return points
 
+    def contact_points_of(self, body_ids: list[int]) -> list[Any]:
+        """:meth:`contact_points` of each of ``body_ids``, in one call."""
+        cached, query = self._step_contacts, self.client.getContactPoints
+        out = []
+        for body_id in body_ids:
+            points = cached.get(body_id)
+            if points is None:
+                points = cached[body_id] = query(bodyA=body_id)
+            out.append(points)
+        return out
+
     def contact_force(self, a: str, b: str) -> float:
         """Total normal force between bodies ``a`` and ``b`` [N]."""
         return sum(p[9] for p in self.client.getContactPoints(
