@@ -351,6 +351,8 @@ def _writer_class() -> type:
     """rosbags' bag writer, with what it computes with ruamel YAML per connection and at
     close (the topics' QoS, ``metadata.yaml``) computed once per process and topic layout
     (the YAML text is the same, byte for byte)."""
+    from importlib.metadata import version
+
     from rosbags.interfaces import ConnectionExtRosbag2, MessageDefinition, \
         MessageDefinitionFormat
     from rosbags.interfaces import Connection
@@ -360,7 +362,30 @@ def _writer_class() -> type:
                                               write_string, write_uint16, write_uint32,
                                               write_uint64)
 
+    rosbags_version = version('rosbags')
+
     class _Mcap(McapWriter):
+        def __init__(self, path: Path, compression: CompressionMode) -> None:
+            if compression != CompressionMode.NONE:
+                super().__init__(path, compression)
+                return
+            # rosbags' own, but for the version of rosbags in the header: asked once per
+            # process, not of the package metadata for every bag.
+            self.path = path / f'{path.name}.mcap'
+            self.bio = self.path.open('xb')
+            self.bio.write(b'\x89MCAP\x30\r\n')
+            rec = BytesIO()
+            write_string(rec, 'ros2')
+            write_string(rec, f'rosbags-{rosbags_version}')
+            write_record(self.bio, 0x01, rec)
+            self.schemas, self.channels, self.chunks = [], [], []
+            self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+            self.compression = ''
+            self.compressor = lambda data: data
+            self.message_start_time = 2**63 - 1
+            self.message_end_time = 0
+            self.channel_stats = {}
+
         def write(self, connection: Any, timestamp: int, data: bytes) -> None:
             # rosbags' message record, packed in one call instead of a BytesIO per message.
             self.message_start_time = min(timestamp, self.message_start_time)
