@@ -199,18 +199,24 @@ class Monitor:
         self._tf_pack = _tf_template(self._tf).pack
 
     def _markers(self, t: int) -> None:
-        markers = []
+        layout = []   # (frame, shape, offset) of each marker
         for body in self.physics.bodies.values():
             if body.shape is not None:
-                markers.append(_marker(t, len(markers), body.name, body.shape,
-                                       (0.0, 0.0, 0.0)))
+                layout.append((body.name, body.shape, (0.0, 0.0, 0.0)))
             for link, shapes in body.link_shapes.items():
                 for shape, offset in shapes:
-                    markers.append(_marker(t, len(markers), _link_frame(body, link),
-                                           shape, offset))
-        self.bag.write(TOPICS['markers'], self.bag.new(
-            'visualization_msgs/msg/MarkerArray', markers=markers), t)
+                    layout.append((_link_frame(body, link), shape, tuple(map(float, offset))))
         self.physics.shapes_changed = False
+        try:
+            template = _markers_template(tuple(layout))
+        except TypeError:   # a shape of lists: no layout to keep, the message itself
+            self.bag.write(TOPICS['markers'], self.bag.new(
+                'visualization_msgs/msg/MarkerArray', markers=[
+                    _marker(t, index, *marker) for index, marker in enumerate(layout)]), t)
+            return
+        sec, nanosec = divmod(t, 1_000_000_000)
+        self.bag.write_sample(t, [(TOPICS['markers'], template.msgtype,
+                                   template.pack((sec, nanosec) * (2 * len(layout))))])
 
     def _particles(self, t: int, sec: int, nanosec: int) -> tuple[str, str, bytes]:
         """The fluids' particles at ``t``: recorded, and their message returned."""
@@ -281,6 +287,18 @@ def _objects_template(names: tuple[str, ...]) -> CdrTemplate:
     return _template(_MSG + 'ObjectStateArray', _new(
         _MSG + 'ObjectStateArray', header=_header(0), objects=states),
         ('header.stamp.*', 'objects.*'))
+
+
+@functools.lru_cache(maxsize=64)
+def _markers_template(layout: tuple[tuple[str, Shape, tuple[float, float, float]], ...]
+                      ) -> CdrTemplate:
+    """A ``MarkerArray`` of the bodies' shapes, a marker per ``(frame, shape, offset)``;
+    its stamps (each marker's and its texture's) vary."""
+    markers = [_marker(0, index, frame, shape, offset)
+               for index, (frame, shape, offset) in enumerate(layout)]
+    return _template('visualization_msgs/msg/MarkerArray',
+                     _new('visualization_msgs/msg/MarkerArray', markers=markers),
+                     ('markers.*.header.stamp.*', 'markers.*.texture.header.stamp.*'))
 
 
 @functools.lru_cache(maxsize=16)

@@ -252,3 +252,24 @@ def test_a_projections_bag_holds_rosbags_bytes_and_its_timeline(tmp_path, make_s
     assert counts['/tf'] == counts['/clock'] == counts['/projection/contacts'] > 200
     assert translate_bag(tmp_path / 'grasp') == timeline
     assert 'break' in [event[0] for event in timeline['events']]
+
+
+def test_the_markers_of_a_layout_are_rosbags_bytes_of_the_message_itself():
+    """Body markers are packed from a template of their layout (frames, shapes, offsets);
+    at any time they are rosbags' serialization of the markers made for that time."""
+    from projection_server.simulation.monitor import _marker, _markers_template
+    from projection_server.simulation.physics import Shape
+
+    store = typestore()
+    layout = ((('table1', Shape('box', (1.0, 0.6, 0.04), (0.6, 0.4, 0.2, 1.0)), (0.0,) * 3),
+               ('egg1', Shape('sphere', (0.058, 0.044, 0.044), (1.0, 1.0, 0.9, 1.0)),
+                (0.0,) * 3),
+               ('pancake1/s3', Shape('box', (0.02, 0.02, 0.01), (0.9, 0.8, 0.5, 1.0),
+                                     (0.0, 0.0, 0.38, 0.92)), (0.01, -0.02, 0.003))))
+    template = _markers_template(layout)
+    for t in (0, 1_683_333_333, 12_000_000_001):
+        message = store.types['visualization_msgs/msg/MarkerArray'](markers=[
+            _marker(t, index, *marker) for index, marker in enumerate(layout)])
+        sec, nanosec = divmod(t, 1_000_000_000)
+        assert template.pack((sec, nanosec) * (2 * len(layout))) == bytes(
+            store.serialize_cdr(message, 'visualization_msgs/msg/MarkerArray'))
