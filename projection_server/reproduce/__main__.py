@@ -57,11 +57,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     rclpy.init()
     try:
-        with PrologClient(args.server) as client, \
-                _server(client, args.server, args.out / 'bags', args.timeout):
-            reproduce(client, args.out, quick=args.quick, experiments=experiments,
-                      timeout=args.timeout, frames=not args.no_frames,
-                      reference=args.reference, say=_say)
+        client = PrologClient(args.server)
+        own = False
+        try:
+            with _server(client, args.server, args.out / 'bags', args.timeout) as own:
+                reproduce(client, args.out, quick=args.quick, experiments=experiments,
+                          timeout=args.timeout, frames=not args.no_frames,
+                          reference=args.reference, say=_say)
+        finally:
+            # Our own node has finished our queries and is gone: asking it again would
+            # wait out the client's service timeout (10 s) for nothing.
+            client.close(finish=not own)
     except (ReproduceError, LaunchError, PrologClientError) as exc:
         print(f'reproduce: {exc}', file=sys.stderr)
         return 1
@@ -75,13 +81,14 @@ def _say(line: str) -> None:
 
 
 @contextlib.contextmanager
-def _server(client, server: str, bag_dir: Path, timeout: float) -> Iterator[None]:
-    """Use the node at ``server`` if it answers, else run our own for the block's duration."""
+def _server(client, server: str, bag_dir: Path, timeout: float) -> Iterator[bool]:
+    """Use the node at ``server`` if it answers, else run our own for the block's duration
+    (the block gets True: the node is ours, and gone after the block)."""
     from projection_server.client import PrologClientError
 
     if client.wait_for_server(3.0):
         _say(f'using the running node {server}')
-        yield
+        yield False
         return
     command = shutil.which('projection_server')
     if command is None:
@@ -96,7 +103,7 @@ def _server(client, server: str, bag_dir: Path, timeout: float) -> Iterator[None
     with NodeProcess(cmd, log_path, stop_timeout=20.0) as proc:
         proc.wait_for_service(f'{server}/query')
         try:
-            yield
+            yield True
         finally:
             if proc.running:
                 # Release our queries before the node shuts down.
