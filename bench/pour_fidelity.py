@@ -15,6 +15,16 @@ bench/fidelity.py's tolerances:
     tools/with_env.sh python bench/pour_fidelity.py --points all --no-reference
     tools/with_env.sh python bench/pour_fidelity.py --points misses --no-global \
         --also 960/120 720/60          # how far equally fine settings differ
+
+Candidate settings for the pour run as "program" against a reference computed once and
+saved (``--save``: every run's measures as JSON; ``--reference-from``: take the reference's
+from such a file instead of simulating it again). ``--physics`` sets settings over the
+program's own, ``--engine`` more ``setPhysicsEngineParameter`` arguments (options that are
+not settings, e.g. ``{"enableConeFriction": 0}``), both for the program's run only:
+
+    tools/with_env.sh python bench/pour_fidelity.py --points all --no-global --save ref.json
+    tools/with_env.sh python bench/pour_fidelity.py --points all --no-global \
+        --reference-from ref.json --engine '{"enableConeFriction": 0}'
 """
 
 from __future__ import annotations
@@ -22,6 +32,7 @@ from __future__ import annotations
 import argparse
 from concurrent.futures import ProcessPoolExecutor
 import itertools
+import json
 import os
 from pathlib import Path
 import platform
@@ -38,6 +49,20 @@ from step_convergence import kb_scenario  # noqa: E402
 POINTS = ((2.14, 0.0, 0.0), (1.84, 0.0, 0.0), (1.99, 0.5, 0.0), (2.14, 1.0, -0.09))
 # The small piles whose counts differ most from the 4x reference (bench/fidelity.py).
 MISSES = ((1.84, 0.0, -0.09), (1.84, 0.0, 0.07), (1.99, 0.0, 0.07), (1.84, 0.5, 0.07))
+
+
+def _engine(options: dict) -> None:
+    """Worker initializer: every world built in this process also gets ``options``."""
+    if not options:
+        return
+    from projection_server.simulation import world
+
+    configure = world._configure
+
+    def configured(client, settings) -> None:
+        configure(client, settings)
+        client.setPhysicsEngineParameter(**options)
+    world._configure = configured
 
 
 def pour(job: tuple) -> tuple[tuple, str, dict, float]:
@@ -60,7 +85,9 @@ def pour(job: tuple) -> tuple[tuple, str, dict, float]:
     values = {(q[0], q[1][0]): q[2] for q in timeline['quantities']}
     measures = {'pan': values.get(('particles_on', 'pancake_maker1')),
                 'spill': values.get(('particles_spilled', 'pancake_mix1')),
-                'round': values.get(('roundness', 'pancake_maker1'))}
+                'round': values.get(('roundness', 'pancake_maker1')),
+                'off_x': values.get(('centroid_offset_x', 'pancake_maker1')),
+                'off_y': values.get(('centroid_offset_y', 'pancake_maker1'))}
     return point, name, measures, cpu
 
 
@@ -76,7 +103,19 @@ def main() -> int:
     parser.add_argument('--no-reference', action='store_true')
     parser.add_argument('--no-global', action='store_true')
     parser.add_argument('--workers', type=int, default=2)
+    parser.add_argument('--physics', default='{}', metavar='JSON',
+                        help="settings over the program's own, for its run")
+    parser.add_argument('--engine', default='{}', metavar='JSON',
+                        help="more setPhysicsEngineParameter arguments, for the program's run")
+    parser.add_argument('--save', type=Path, help='write every run\'s measures to this file')
+    parser.add_argument('--reference-from', type=Path, metavar='FILE',
+                        help="the reference's measures from a file of --save")
     args = parser.parse_args()
+    engine = json.loads(args.engine)
+    if engine and not args.no_global or engine and not (args.no_reference
+                                                          or args.reference_from):
+        parser.error('--engine applies to every run of a process: use it with --no-global '
+                     'and --reference-from (or --no-reference)')
 
     from projection_server.reproduce import paper
     from projection_server.reproduce.fidelity import REFERENCE_TOLERANCES
@@ -84,11 +123,11 @@ def main() -> int:
 
     settings = load_settings()
     own = settings.for_projection('pour').physics
-    configs = {'program': None}
+    configs = {'program': json.loads(args.physics) or None}
     if not args.no_global:
         configs['global'] = {'rate_hz': settings.physics.rate_hz,
                              'solver_iterations': settings.physics.solver_iterations}
-    if not args.no_reference:
+    if not args.no_reference and not args.reference_from:
         configs['reference'] = {'rate_hz': own.rate_hz * args.factor,
                                 'solver_iterations': own.solver_iterations * args.factor}
     for also in args.also:
@@ -102,13 +141,26 @@ def main() -> int:
             for point in points for name, physics in configs.items()]
     results: dict[tuple, dict[str, tuple[dict, float]]] = {}
     start = time.monotonic()
-    with ProcessPoolExecutor(args.workers) as executor:
+    with ProcessPoolExecutor(args.workers, initializer=_engine,
+                             initargs=(engine,)) as executor:
         for point, name, measures, cpu in executor.map(pour, jobs):
             results.setdefault(point, {})[name] = (measures, cpu)
             print(f'  angle {point[0]:.2f}, hold {point[1]:.1f} s, position {point[2]:+.2f}, '
                   f'{name:9s}: pan {measures["pan"]}, spill {measures["spill"]}, round '
                   f'{_round(measures["round"])}, {cpu:.1f} CPU s', flush=True)
     wall = time.monotonic() - start
+    if args.save:
+        args.save.write_text(json.dumps(
+            [{'point': list(point), 'name': name, 'physics': configs[name],
+              'engine': engine if name == 'program' else {}, 'measures': m, 'cpu': cpu}
+             for point, runs in results.items() for name, (m, cpu) in runs.items()],
+            indent=1))
+    if args.reference_from:
+        saved = {tuple(r['point']): r for r in json.loads(args.reference_from.read_text())
+                 if r['name'] == 'reference'}
+        for point, runs in results.items():
+            runs['reference'] = (saved[point]['measures'], saved[point]['cpu'])
+        configs['reference'] = next(iter(saved.values()))['physics']
 
     print()
     print("pour fidelity benchmark: the pour's settings vs the global settings and a "
@@ -117,22 +169,39 @@ def main() -> int:
           f'{platform.python_version()}, {os.cpu_count()} cores, load average '
           f'{os.getloadavg()[0]:.1f} at the end, {wall:.0f} s wall')
     for name, physics in configs.items():
-        chosen = physics or {'rate_hz': own.rate_hz, 'solver_iterations': own.solver_iterations}
+        chosen = {'rate_hz': own.rate_hz, 'solver_iterations': own.solver_iterations,
+                  **(physics or {})}
         cpus = [r[name][1] for r in results.values()]
+        more = [f'{k} {v:g}' for k, v in chosen.items()
+                if k not in ('rate_hz', 'solver_iterations')]
+        if name == 'program' and engine:
+            more.append(f'engine {engine}')
         print(f'  {name:9s} ({chosen["rate_hz"]} Hz, {chosen["solver_iterations"]} '
-              f'iterations): median {statistics.median(cpus):.2f} CPU s per pour '
+              f'iterations{"".join(", " + m for m in more)}): median '
+              f'{statistics.median(cpus):.2f} CPU s per pour '
               f'(min {min(cpus):.2f}, max {max(cpus):.2f})')
     if 'global' in configs:
         ratios = [r['global'][1] / r['program'][1] for r in results.values()]
         print(f'  speed-up over the global settings: median {statistics.median(ratios):.2f}x '
               f'(CPU, per point: {", ".join(f"{x:.2f}" for x in ratios)})')
     if 'reference' in configs:
-        for column in ('pan', 'spill'):
-            agree = sum(abs(r['program'][0][column] - r['reference'][0][column])
-                        <= REFERENCE_TOLERANCES[column](r['reference'][0][column]) + 1e-12
+        cells = 0
+        for column in ('pan', 'spill', 'off_x', 'off_y', 'round'):
+            agree = sum(_agrees(column, r['program'][0][column], r['reference'][0][column])
                         for r in results.values())
+            cells += agree
             print(f'  {column} within tolerance of the reference: {agree}/{len(results)}')
+        print(f'  cells within tolerance of the reference: {cells}/{5 * len(results)}')
     return 0
+
+
+def _agrees(column: str, ours: float | None, reference: float | None) -> bool:
+    """bench/fidelity.py's test: both undefined, or within the column's tolerance."""
+    from projection_server.reproduce.fidelity import REFERENCE_TOLERANCES
+
+    if ours is None or reference is None:
+        return ours is None and reference is None
+    return abs(ours - reference) <= REFERENCE_TOLERANCES[column](reference) + 1e-12
 
 
 def _round(value: float | None) -> str:
