@@ -406,11 +406,11 @@ class ContactAggregator:
                 row = sums.get(key)
                 if row is None:
                     row = sums[key] = [0.0] * 17
-                # Bullet's normal forces are finite and not negative: a pair's force-
-                # weighted sums are all a sample needs once a point carries force, and its
-                # plain sums otherwise (those of all its points, none of which carries
-                # any). A point without force would add 0 to weighted sums never -0.
-                if f > 0.0:
+                # Force-weighted sums are all a sample needs once a point carries force
+                # (Bullet's normal forces are not negative), plain sums otherwise (those of
+                # all its points, none of which carries any). A point without force is
+                # left out of the weighted ones: it would add 0, or -0.
+                if f != 0.0:
                     row[0] += f
                     row[1] += f * x
                     row[2] += f * y
@@ -422,14 +422,6 @@ class ContactAggregator:
                 row[8] += sign * (f1 * d1y + f2 * d2y)
                 row[9] += sign * (f1 * d1z + f2 * d2z)
                 if not f > 0.0:
-                    if f != 0.0:   # not from Bullet: every sum
-                        row[0] += f
-                        row[1] += f * x
-                        row[2] += f * y
-                        row[3] += f * z
-                        row[4] += f * (sign * nx)
-                        row[5] += f * (sign * ny)
-                        row[6] += f * (sign * nz)
                     row[10] += 1
                     row[11] += x
                     row[12] += y
