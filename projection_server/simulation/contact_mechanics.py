@@ -209,7 +209,8 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
     grown = False
     for _ in range(12):
         lo, hi = np.maximum(centre - half, -h), np.minimum(centre + half, h)
-        u, v = _linspace(lo, hi).T
+        # Both axes at once: the same floats as np.linspace of each (a test compares).
+        u, v = np.linspace(lo, hi, _GRID).T
         points = _grid_points(face_centre, face_axes, u, v)
         gaps = ellipsoid_gaps(semi_axes, rot, pos, points, face_normal)
         if not np.isfinite(gaps).any():
@@ -233,25 +234,9 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
     return stiffness * (delta - float(gaps[np.isfinite(gaps)].min()))
 
 
-def _linspace(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """``np.linspace(lo[k], hi[k], _GRID)`` as the columns of one array, with numpy's
-    arithmetic (start + i * step, the last point the end itself)."""
-    step = (hi - lo) / (_GRID - 1)
-    if not step.all():   # numpy's own way with steps that underflow
-        return np.stack([np.linspace(a, b, _GRID) for a, b in zip(lo, hi)], axis=1)
-    grid = _steps(_GRID) * step + lo
-    grid[-1] = hi
-    return grid
-
-
 def _grid_points(centre: np.ndarray, axes: np.ndarray, u: np.ndarray,
                  v: np.ndarray) -> np.ndarray:
     """The points ``centre + u[i] axes[0] + v[j] axes[1]`` (row i * len(v) + j), added in
     that order, as from a meshgrid of ``u`` and ``v``, but from the rows of the terms."""
     return ((centre + u[:, None] * axes[0])[:, None, :]
             + (v[:, None] * axes[1])[None, :, :]).reshape(-1, 3)
-
-
-@functools.lru_cache(maxsize=8)
-def _steps(n: int) -> np.ndarray:
-    return np.arange(n, dtype=float)[:, None]

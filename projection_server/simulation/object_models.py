@@ -120,9 +120,8 @@ class EggShell:
         self._pads = {(g.body_id, pad.link): (g, pad)
                       for g in physics.grippers.values() for pad in g.pads}
         # A gripper's pad links, asked for in one query when any of its pads is touched.
-        self._pad_links = {}
-        for g in physics.grippers.values():
-            self._pad_links[g.body_id] = [pad.link for pad in g.pads]
+        self._pad_links = {g.body_id: [pad.link for pad in g.pads]
+                           for g in physics.grippers.values()}
         self._version = physics.bodies_version
 
     def _measure(self, physics: Physics) -> float:

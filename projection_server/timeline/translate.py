@@ -59,6 +59,7 @@ The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass, field
 import json
 import math
 import os
@@ -97,24 +98,18 @@ class _Object(NamedTuple):
     broken: bool
 
 
+@dataclass(slots=True)
 class _Sample:
-    """What one monitoring step logged (a plain class with slots: one per sample)."""
+    """What one monitoring step logged."""
 
-    __slots__ = ('t', 'poses', 'moving', 'contacts', 'grippers', 'objects', 'particles')
-
-    def __init__(self, t: float, poses: _Poses | None = None, moving: set[str] | None = None,
-                 contacts: list[tuple[str, str, str, str, float, float]] | None = None,
-                 grippers: dict[str, _Gripper] | None = None,
-                 objects: dict[str, _Object] | None = None,
-                 particles: dict[str, np.ndarray] | None = None):
-        self.t = t
-        self.poses = _Poses() if poses is None else poses
-        self.moving = set() if moving is None else moving
-        # (body_a, link_a, body_b, link_b, normal force, normal z)
-        self.contacts = [] if contacts is None else contacts
-        self.grippers = {} if grippers is None else grippers
-        self.objects = {} if objects is None else objects
-        self.particles = {} if particles is None else particles   # fluid -> (n, 3)
+    t: float
+    poses: _Poses = field(default_factory=lambda: _Poses())
+    moving: set[str] = field(default_factory=set)
+    # (body_a, link_a, body_b, link_b, normal force, normal z)
+    contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
+    grippers: dict[str, _Gripper] = field(default_factory=dict)
+    objects: dict[str, _Object] = field(default_factory=dict)
+    particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
 
 
 def translate_bag(path: str | os.PathLike[str]) -> dict[str, Any]:
