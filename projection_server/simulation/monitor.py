@@ -207,13 +207,7 @@ class Monitor:
                 for shape, offset in shapes:
                     layout.append((_link_frame(body, link), shape, tuple(map(float, offset))))
         self.physics.shapes_changed = False
-        try:
-            template = _markers_template(tuple(layout))
-        except TypeError:   # a shape of lists: no layout to keep, the message itself
-            self.bag.write(TOPICS['markers'], self.bag.new(
-                'visualization_msgs/msg/MarkerArray', markers=[
-                    _marker(t, index, *marker) for index, marker in enumerate(layout)]), t)
-            return
+        template = _markers_template(tuple(layout))
         sec, nanosec = divmod(t, 1_000_000_000)
         self.bag.write_sample(t, [(TOPICS['markers'], template.msgtype,
                                    template.pack((sec, nanosec) * (2 * len(layout))))])

@@ -46,6 +46,12 @@ class Shape:
     color: tuple[float, float, float, float] = (0.7, 0.7, 0.7, 1.0)
     orientation: Quat = (0.0, 0.0, 0.0, 1.0)
 
+    def __post_init__(self) -> None:
+        # Tuples of floats whatever an asset gives (YAML lists): a layout of shapes is the
+        # monitor's cache key of its markers' template.
+        for name in ('size', 'color', 'orientation'):
+            object.__setattr__(self, name, tuple(map(float, getattr(self, name))))
+
 
 @dataclass
 class Body:
