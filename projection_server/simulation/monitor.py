@@ -374,15 +374,18 @@ class ContactAggregator:
         self._version = -1   # of the physics' bodies that _bodies and _pairs are of
         self._bodies: list[int] = []
         self._pairs: dict[tuple[int, int, int, int], Any] = {}
+        self._particles: set[int] = set()
 
     def add_step(self) -> None:
         """Add the contacts of the step just made."""
         self._steps += 1
         if self._version != self.physics.bodies_version:
             self._replan()
-        pairs, sums, bodies = self._pairs, self._sums, self._bodies
+        pairs, sums, bodies, particles = self._pairs, self._sums, self._bodies, self._particles
         for body, points in zip(bodies, self.physics.contact_points_of(bodies)):
             for point in points:
+                if point[2] in particles:   # most of a pour's points; never counted here
+                    continue
                 pair_key = (body, point[3], point[2], point[4])
                 pair = pairs.get(pair_key, False)
                 if pair is False:
@@ -430,6 +433,7 @@ class ContactAggregator:
         self._bodies = [b.body_id for b in physics.bodies.values()
                         if not b.static and b.group is None]
         self._pairs = {}
+        self._particles = {b for fluid in physics.fluids.values() for b in fluid.body_ids}
         self._version = physics.bodies_version
 
     def _pair(self, body: int, link: int, other: int, other_link: int

@@ -283,6 +283,8 @@ class Physics:
         self.bodies_version = 0   # changes whenever a body or fluid is added or replaced
         self._names: dict[int, str] = {}
         self._step_contacts: dict[int, Any] = {}   # body id -> its contact points this step
+        # (bodies_version, {(body, link): (body name, link name)}) of contacts()
+        self._frames: tuple[int, dict[tuple[int, int], tuple[str | None, str]]] = (-1, {})
 
     # --- registry -----------------------------------------------------------------------
     def add_body(self, body: Body) -> Body:
@@ -405,7 +407,9 @@ class Physics:
     def contacts(self) -> list[ContactSample]:
         """All contacts of the last step between named bodies, one per link pair, sorted."""
         groups: dict[tuple[str, str, str, str], list[tuple[Any, float]]] = {}
-        frames: dict[tuple[int, int], tuple[str | None, str]] = {}   # (body, link) -> names
+        if self._frames[0] != self.bodies_version:
+            self._frames = (self.bodies_version, {})
+        frames = self._frames[1]   # (body, link) -> names, kept while the bodies are
         fluids = self.fluids
         for point in self._contact_points():
             key_a = frames.get((point[1], point[3]))
