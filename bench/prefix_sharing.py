@@ -19,6 +19,13 @@ object models' state and the step count of its straight run, bit for bit::
     tools/with_env.sh python bench/prefix_sharing.py               # Table II's 27 pours
     tools/with_env.sh python bench/prefix_sharing.py --program grasp_object   # Table I
     tools/with_env.sh python bench/prefix_sharing.py --positions 0.0
+
+With ``--pipeline`` both ways are whole projections: straight is
+:meth:`~projection_server.simulation.runner.Simulator.run` (monitor, bag, timeline); in the
+tree the monitor logs the shared steps once, and each child writes a bag of its own, its own
+``/projection/info`` first and then the shared messages again, in the order they were
+written. Every leaf's bag must then be byte for byte the straight run's, and its timeline
+equal.
 """
 
 from __future__ import annotations
@@ -49,13 +56,17 @@ def _start(program: str) -> None:
     import pybullet
 
     from projection_server.simulation.physics import bound_client
+    from projection_server.simulation.runner import Simulator
     from projection_server.simulation.scenario import parse_scenario
     from projection_server.simulation.settings import load_settings
 
     _state['program'] = program
     _state['client'] = bound_client(pybullet.DIRECT)
-    _state['scenario'] = parse_scenario(kb_scenario(SCENARIOS[program]))
-    _state['settings'] = load_settings().for_projection(program)
+    _state['description'] = kb_scenario(SCENARIOS[program])
+    _state['scenario'] = parse_scenario(_state['description'])
+    _state['base'] = load_settings()
+    _state['settings'] = _state['base'].for_projection(program)
+    _state['simulator'] = Simulator()
 
 
 def _build(params: dict):
@@ -104,11 +115,95 @@ def _end_state(physics) -> tuple:
     return physics.step_count, bodies, models
 
 
-def straight(params: dict) -> tuple[dict, tuple, float]:
+def straight(params: dict, pipeline: bool = False) -> tuple[dict, tuple, float]:
     start = _cpu()
+    if pipeline:
+        with tempfile.TemporaryDirectory() as tmp:
+            bag = Path(tmp) / 'bag'
+            end = _logged_end(bag, _state['simulator'].run(_job(params), _state['base'], bag))
+        return params, end, _cpu() - start
     physics, task = _build(params)
     _advance(physics, task, None)
     return params, _end_state(physics), _cpu() - start
+
+
+# --- whole projections: the monitor and a bag per leaf --------------------------------------
+def _job(params: dict):
+    from projection_server.simulation.job import Job
+
+    return Job.checked(_state['description'], _state['program'], params)
+
+
+def _logged_end(bag: Path, timeline: dict) -> tuple:
+    """What a whole projection left: its bag's files and its timeline, but where they are
+    (a bag directory named ``bag``, as its file names follow the directory's)."""
+    meta = {k: v for k, v in timeline['meta'].items() if k != 'bag'}
+    return ({f.name: f.read_bytes() for f in sorted(bag.iterdir())}, {**timeline, 'meta': meta})
+
+
+class _Recorder:
+    """A bag writer that also keeps every call, to be made again into a child's bag."""
+
+    def __init__(self, writer, calls: list):
+        self.writer, self.calls = writer, calls
+
+    def write(self, topic: str, message, t_ns: int) -> None:
+        self.calls.append(('write', (topic, message, t_ns)))
+        self.writer.write(topic, message, t_ns)
+
+    def write_sample(self, t_ns: int, messages) -> None:
+        messages = list(messages)
+        self.calls.append(('write_sample', (t_ns, messages)))
+        self.writer.write_sample(t_ns, messages)
+
+    def __getattr__(self, name: str):
+        return getattr(self.writer, name)
+
+
+def _info(params: dict) -> dict[str, str]:
+    """The ``/projection/info`` fields of ``params``' projection, as Simulator.run has them."""
+    from projection_server.simulation.job import canonical_json, code_version
+
+    job = _job(params)
+    return {'job_key': job.key(_state['base']), 'scenario_name': _state['scenario'].name,
+            'scenario_json': canonical_json(job.scenario), 'program': job.program,
+            'parameters_json': canonical_json(job.params),
+            'settings_json': canonical_json(job.settings(_state['base']).to_dict()),
+            'code_version': code_version()}
+
+
+def _rebag(monitor, params: dict, path: Path) -> None:
+    """Give ``monitor`` a bag of its own at ``path``: ``params``' info, then what was
+    written so far (the parent's bag file is left alone: children end with os._exit)."""
+    from projection_server.bags import BagWriter, TOPICS
+    from projection_server.simulation.monitor import Record
+
+    shared = monitor.bag.calls
+    writer = BagWriter(path).__enter__()
+    info = writer.new('projection_interfaces/msg/ProjectionInfo',
+                      header=shared[0][1][1].header, **_info(params))
+    monitor.bag = _Recorder(writer, [])
+    monitor.bag.write(TOPICS['info'], info, 0)
+    for method, args in shared[1:]:
+        getattr(monitor.bag, method)(*args)
+    monitor.records[0] = Record('info', 0, info)
+
+
+def _run_logged(physics, task, monitor, until: int | None) -> None:
+    """:meth:`Simulator.run`'s loop, from the current step to ``until`` (None: the end)."""
+    rate = physics.settings.physics.rate_hz
+    control = physics.settings.control.steps_per_control
+    log = physics.settings.control.steps_per_log
+    end = math.ceil(task.duration * rate - 1e-9) if until is None else until
+    finished = getattr(task, 'finished', None)
+    while physics.step_count < end:
+        if physics.step_count % control == 0:
+            task.control(physics)
+        physics.step()
+        if physics.step_count % log == 0:
+            monitor.sample()
+            if until is None and finished is not None and finished(physics):
+                break
 
 
 # --- where parametrizations part, per program ----------------------------------------------
@@ -151,20 +246,35 @@ def _name(params: dict) -> str:
     return '-'.join(f'{v}' for v in params.values())
 
 
-def _tree(physics, task, leaves: list[dict], out: Path) -> None:
+def _tree(physics, task, leaves: list[dict], out: Path, monitor=None) -> None:
     """Run ``leaves`` (sharing the state and the next command) to their ends, forking
-    where their commands part; each leaf's end state goes to ``out``."""
+    where their commands part; each leaf's end state (with ``monitor``: its bag and
+    timeline) goes to ``out``."""
     _retime(task, leaves[0])
     _recommand(task)
     if len(leaves) == 1:
-        _advance(physics, task, None)
-        (out / _name(leaves[0])).write_bytes(pickle.dumps(_end_state(physics)))
+        if monitor is None:
+            _advance(physics, task, None)
+            end = _end_state(physics)
+        else:
+            from projection_server.timeline.translate import translate_records
+
+            bag = out / f'{_name(leaves[0])}.leaf' / 'bag'
+            bag.parent.mkdir()
+            _rebag(monitor, leaves[0], bag)
+            _run_logged(physics, task, monitor, None)
+            monitor.bag.writer.__exit__(None, None, None)
+            end = _logged_end(bag, translate_records(monitor.records, bag))
+        (out / _name(leaves[0])).write_bytes(pickle.dumps(end))
         return
     step = physics.step_count
     while len({_command(physics, task, p, step) for p in leaves}) == 1:
         step += 1
     _retime(task, leaves[0])
-    _advance(physics, task, step)   # the steps these leaves share
+    if monitor is None:
+        _advance(physics, task, step)   # the steps these leaves share
+    else:
+        _run_logged(physics, task, monitor, step)
     groups: dict = {}
     for p in leaves:
         groups.setdefault(_command(physics, task, p, step), []).append(p)
@@ -172,20 +282,41 @@ def _tree(physics, task, leaves: list[dict], out: Path) -> None:
         pid = os.fork()
         if pid == 0:
             try:
-                _tree(physics, task, group, out)
+                _tree(physics, task, group, out, monitor)
             finally:
                 os._exit(0)
         os.waitpid(pid, 0)
 
 
-def tree(leaves: list[dict]) -> tuple[list[tuple[dict, tuple]], float]:
+def tree(leaves: list[dict], pipeline: bool = False) -> tuple[list[tuple[dict, tuple]], float]:
     start = _cpu()
-    physics, task = _build(leaves[0])
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        _tree(physics, task, leaves, out)
+        if pipeline:
+            _tree_logged(leaves, out)
+        else:
+            physics, task = _build(leaves[0])
+            _tree(physics, task, leaves, out)
         ends = [(p, pickle.loads((out / _name(p)).read_bytes())) for p in leaves]
     return ends, _cpu() - start
+
+
+def _tree_logged(leaves: list[dict], out: Path) -> None:
+    """The tree of whole projections, from a child (whose shared bag is never closed)."""
+    from projection_server.bags import BagWriter
+    from projection_server.simulation.monitor import Monitor
+
+    pid = os.fork()
+    if pid == 0:
+        try:
+            physics, task = _build(leaves[0])
+            writer = BagWriter(out / 'shared.bag').__enter__()
+            monitor = Monitor(physics, _Recorder(writer, []))
+            monitor.start(_info(leaves[0]))
+            _tree(physics, task, leaves, out, monitor)
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
 
 
 def main() -> int:
@@ -194,6 +325,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--program', choices=tuple(SCENARIOS), default='pour')
     parser.add_argument('--positions', type=float, nargs='*')
+    parser.add_argument('--pipeline', action='store_true',
+                        help='whole projections: monitor, a bag per leaf, timelines')
     args = parser.parse_args()
     if args.program == 'pour':
         positions = args.positions or paper.POUR_POSITIONS
@@ -207,22 +340,25 @@ def main() -> int:
     with ProcessPoolExecutor(2, multiprocessing.get_context('forkserver'),
                              initializer=_start, initargs=(args.program,)) as pool:
         started = time.perf_counter()
-        straights = list(pool.map(straight, [p for leaves in trees for p in leaves]))
+        jobs = [p for leaves in trees for p in leaves]
+        straights = list(pool.map(straight, jobs, [args.pipeline] * len(jobs)))
         straight_wall = time.perf_counter() - started
         started = time.perf_counter()
-        forked = list(pool.map(tree, trees))
+        forked = list(pool.map(tree, trees, [args.pipeline] * len(trees)))
         tree_wall = time.perf_counter() - started
     expected = {_name(p): end for p, end, _ in straights}
     same = sum(end == expected[_name(p)] for ends, _ in forked for p, end in ends)
     straight_cpu = sum(cpu for _, _, cpu in straights)
     tree_cpu = sum(cpu for _, cpu in forked)
     count = len(straights)
+    what = ('whole projections (monitor, a bag each, timeline)' if args.pipeline
+            else 'bare stepping with the object models')
     print(f'prefix sharing benchmark: {args.program} projections of one position stepped '
           'once where they agree, forked where their commands part, against each stepped '
           'from the start')
     print(f'  settings: {count} projections ({len(trees)} positions {list(positions)}, '
-          f'{[{k: v for k, v in p.items() if k != "position"} for p in trees[0]]}), bare '
-          f'stepping with the object models at the program\'s settings, 2 processes; '
+          f'{[{k: v for k, v in p.items() if k != "position"} for p in trees[0]]}), '
+          f'{what} at the program\'s settings, 2 processes; '
           f'python {platform.python_version()}, {os.cpu_count()} cores, load average '
           f'{os.getloadavg()[0]:.1f} at the end')
     print(f'  straight: {straight_cpu:.1f} CPU s ({straight_wall:.1f} s wall)')
