@@ -64,3 +64,14 @@ def test_contacts_sum_a_link_pairs_points_as_a_loop_over_them_does():
             c.friction) for c in physics.contacts()]
     assert len(got) == len(expected) >= 5
     assert got == expected
+
+
+def test_a_shape_of_an_assets_lists_is_a_hashable_shape_of_floats():
+    """A gripper asset gives sizes as YAML lists; its shapes must still be hashable (the
+    monitor keeps its markers' template per layout) and equal to the same tuples."""
+    from projection_server.simulation.physics import Shape
+
+    from_asset = Shape('box', [0.02, 0.01, 1], [0.3, 0.3, 0.35, 1], [0, 0, 0, 1])
+    assert from_asset == Shape('box', (0.02, 0.01, 1.0), (0.3, 0.3, 0.35, 1.0))
+    assert hash(from_asset) == hash(Shape('box', (0.02, 0.01, 1.0), (0.3, 0.3, 0.35, 1.0)))
+    assert all(type(x) is float for x in (*from_asset.size, *from_asset.orientation))
