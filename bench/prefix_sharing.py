@@ -52,7 +52,7 @@ SCENARIOS = {'pour': 'pouring', 'grasp_object': 'grasping'}
 _state: dict = {}
 
 
-def _start(program: str) -> None:
+def _start(program: str, pipeline: bool) -> None:
     import pybullet
 
     from projection_server.simulation.physics import bound_client
@@ -66,7 +66,8 @@ def _start(program: str) -> None:
     _state['scenario'] = parse_scenario(_state['description'])
     _state['base'] = load_settings()
     _state['settings'] = _state['base'].for_projection(program)
-    _state['simulator'] = Simulator()
+    if pipeline:
+        _state['simulator'] = Simulator()
 
 
 def _build(params: dict):
@@ -88,19 +89,25 @@ def _cpu() -> float:
     return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime
 
 
-def _advance(physics, task, until: int | None) -> None:
-    """Step on to ``until`` (None: to the program's end: its duration, or the pour's rest)."""
+def _advance(physics, task, until: int | None, monitor=None) -> None:
+    """Step on to ``until`` (None: to the program's end: its duration, or the pour's rest),
+    as :meth:`Simulator.run` does; with ``monitor``, sampling as it does."""
     control = physics.settings.control.steps_per_control
     log = physics.settings.control.steps_per_log
-    end = math.ceil(task.duration * physics.settings.physics.rate_hz - 1e-9)
-    finished = getattr(task, 'finished', None)
-    while physics.step_count < (end if until is None else until):
+    if until is None:
+        until = math.ceil(task.duration * physics.settings.physics.rate_hz - 1e-9)
+        finished = getattr(task, 'finished', None)
+    else:
+        finished = None
+    while physics.step_count < until:
         if physics.step_count % control == 0:
             task.control(physics)
         physics.step()
-        if (until is None and finished is not None and physics.step_count % log == 0
-                and finished(physics)):
-            break
+        if physics.step_count % log == 0:
+            if monitor is not None:
+                monitor.sample()
+            if finished is not None and finished(physics):
+                break
 
 
 def _end_state(physics) -> tuple:
@@ -161,15 +168,9 @@ class _Recorder:
 
 
 def _info(params: dict) -> dict[str, str]:
-    """The ``/projection/info`` fields of ``params``' projection, as Simulator.run has them."""
-    from projection_server.simulation.job import canonical_json, code_version
+    from projection_server.simulation.runner import projection_info
 
-    job = _job(params)
-    return {'job_key': job.key(_state['base']), 'scenario_name': _state['scenario'].name,
-            'scenario_json': canonical_json(job.scenario), 'program': job.program,
-            'parameters_json': canonical_json(job.params),
-            'settings_json': canonical_json(job.settings(_state['base']).to_dict()),
-            'code_version': code_version()}
+    return projection_info(_job(params), _state['base'], _state['scenario'].name)
 
 
 def _rebag(monitor, params: dict, path: Path) -> None:
@@ -187,23 +188,6 @@ def _rebag(monitor, params: dict, path: Path) -> None:
     for method, args in shared[1:]:
         getattr(monitor.bag, method)(*args)
     monitor.records[0] = Record('info', 0, info)
-
-
-def _run_logged(physics, task, monitor, until: int | None) -> None:
-    """:meth:`Simulator.run`'s loop, from the current step to ``until`` (None: the end)."""
-    rate = physics.settings.physics.rate_hz
-    control = physics.settings.control.steps_per_control
-    log = physics.settings.control.steps_per_log
-    end = math.ceil(task.duration * rate - 1e-9) if until is None else until
-    finished = getattr(task, 'finished', None)
-    while physics.step_count < end:
-        if physics.step_count % control == 0:
-            task.control(physics)
-        physics.step()
-        if physics.step_count % log == 0:
-            monitor.sample()
-            if until is None and finished is not None and finished(physics):
-                break
 
 
 # --- where parametrizations part, per program ----------------------------------------------
@@ -262,7 +246,7 @@ def _tree(physics, task, leaves: list[dict], out: Path, monitor=None) -> None:
             bag = out / f'{_name(leaves[0])}.leaf' / 'bag'
             bag.parent.mkdir()
             _rebag(monitor, leaves[0], bag)
-            _run_logged(physics, task, monitor, None)
+            _advance(physics, task, None, monitor)
             monitor.bag.writer.__exit__(None, None, None)
             end = _logged_end(bag, translate_records(monitor.records, bag))
         (out / _name(leaves[0])).write_bytes(pickle.dumps(end))
@@ -271,10 +255,7 @@ def _tree(physics, task, leaves: list[dict], out: Path, monitor=None) -> None:
     while len({_command(physics, task, p, step) for p in leaves}) == 1:
         step += 1
     _retime(task, leaves[0])
-    if monitor is None:
-        _advance(physics, task, step)   # the steps these leaves share
-    else:
-        _run_logged(physics, task, monitor, step)
+    _advance(physics, task, step, monitor)   # the steps these leaves share
     groups: dict = {}
     for p in leaves:
         groups.setdefault(_command(physics, task, p, step), []).append(p)
@@ -338,7 +319,7 @@ def main() -> int:
         trees = [[{'force': float(f), 'position': x} for f in paper.GRASP_FORCES]
                  for x in positions]
     with ProcessPoolExecutor(2, multiprocessing.get_context('forkserver'),
-                             initializer=_start, initargs=(args.program,)) as pool:
+                             initializer=_start, initargs=(args.program, args.pipeline)) as pool:
         started = time.perf_counter()
         jobs = [p for leaves in trees for p in leaves]
         straights = list(pool.map(straight, jobs, [args.pipeline] * len(jobs)))

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.simulation.settings import Settings
 
-__all__ = ['Simulator', 'run_projection']
+__all__ = ['Simulator', 'projection_info', 'run_projection']
 
 
 class Simulator:
@@ -56,23 +56,18 @@ class Simulator:
 
         scenario = parse_scenario(job.scenario)
         program = get_program(job.program)
-        key = job.key(settings)
+        info = projection_info(job, settings, scenario.name)
         settings = job.settings(settings)
         physics = build_world(self.client, scenario, settings)
         task = program.create(physics, scenario, dict(job.params),
-                              np.random.default_rng(int(key[:16], 16)))
+                              np.random.default_rng(int(info['job_key'][:16], 16)))
         rate = settings.physics.rate_hz
         control, log = settings.control.steps_per_control, settings.control.steps_per_log
         steps = math.ceil(task.duration * rate - 1e-9)
         finished = getattr(task, 'finished', None)
         with BagWriter(bag_path) as bag:
             monitor = Monitor(physics, bag)
-            monitor.start({
-                'job_key': key, 'scenario_name': scenario.name,
-                'scenario_json': canonical_json(job.scenario), 'program': job.program,
-                'parameters_json': canonical_json(job.params),
-                'settings_json': canonical_json(settings.to_dict()),
-                'code_version': code_version()})
+            monitor.start(info)
             for step in range(steps):
                 if step % control == 0:
                     task.control(physics)
@@ -85,6 +80,16 @@ class Simulator:
 
     def close(self) -> None:
         self.client.disconnect()
+
+
+def projection_info(job: Job, settings: Settings, scenario_name: str) -> dict[str, str]:
+    """The fields of the ``/projection/info`` message of ``job`` at ``settings`` (the
+    global ones: the job's own are recorded)."""
+    return {'job_key': job.key(settings), 'scenario_name': scenario_name,
+            'scenario_json': canonical_json(job.scenario), 'program': job.program,
+            'parameters_json': canonical_json(job.params),
+            'settings_json': canonical_json(job.settings(settings).to_dict()),
+            'code_version': code_version()}
 
 
 def run_projection(job: Job, settings: Settings, bag_path: Path) -> dict[str, Any]:
