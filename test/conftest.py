@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
+import time
 
 import pytest
 
@@ -62,14 +64,23 @@ def call(server, node):
     """call(srv_type, 'query', request) -> response, straight over the service."""
     import rclpy
     clients = {}
+    # Tests call from several threads at once; rclpy's executor may be spun by one thread
+    # at a time ("generator already executing"), so they take turns in short slices, and
+    # a response that arrives during another thread's slice completes its future there.
+    spinning = threading.Lock()
 
     def _call(srv_type, service, request, timeout=30.0):
         key = (srv_type, service)
-        if key not in clients:
-            clients[key] = node.create_client(srv_type, f'{server}/{service}')
-            assert clients[key].wait_for_service(timeout_sec=20.0)
-        future = clients[key].call_async(request)
-        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+        with spinning:
+            if key not in clients:
+                clients[key] = node.create_client(srv_type, f'{server}/{service}')
+                assert clients[key].wait_for_service(timeout_sec=20.0)
+            future = clients[key].call_async(request)
+        deadline = time.monotonic() + timeout
+        while not future.done() and time.monotonic() < deadline:
+            with spinning:
+                if not future.done():
+                    rclpy.spin_until_future_complete(node, future, timeout_sec=0.05)
         assert future.done(), f'no answer from {service}'
         return future.result()
     return _call
