@@ -281,15 +281,15 @@ def test_memory_and_threads_come_back_after_a_burst(server, call):
         assert not errors, errors
         engines_back_to(call, 0, within=2.0)
         # The query threads' last steps, then the node's once-a-second housekeeping, which
-        # hands freed memory back once no engine is busy: until RSS stops falling (on a
-        # loaded machine the housekeeping may come a few seconds late).
+        # hands freed memory back once no engine is busy: until RSS has not fallen for two
+        # seconds running (on a loaded machine the housekeeping may come a few seconds late,
+        # so one quiet second is not yet the end).
         time.sleep(1.5)
-        now, deadline = stats(call), time.monotonic() + 10.0
-        while time.monotonic() < deadline:
+        now, deadline, quiet = stats(call), time.monotonic() + 10.0, 0
+        while time.monotonic() < deadline and quiet < 2:
             time.sleep(1.0)
             previous, now = now, stats(call)
-            if now['rss_kib'] > previous['rss_kib'] - 1024:
-                break
+            quiet = quiet + 1 if now['rss_kib'] > previous['rss_kib'] - 1024 else 0
         return now
 
     # The first burst grows the executor's thread pool and Prolog's caches to their size.
