@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import atexit
 from collections import OrderedDict
+import itertools
 import logging
 import os
 from pathlib import Path
@@ -45,6 +46,7 @@ __all__ = [
     'drop',
     'physics_settings',
     'prefetch',
+    'prefetch_plan',
     'programs',
     'project',
     'release',
@@ -57,6 +59,7 @@ __all__ = [
     'workers',
 ]
 
+FAMILY_BATCH = 32   # projections of one family queued at most at once by prefetch_plan
 _POLL = 1.0   # s between checks that the backend still runs while waiting for a result
 
 _log = logging.getLogger('projection_server.projection')
@@ -190,20 +193,69 @@ def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
 def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
              timeout: float, owner: str | None = None,
              physics: Mapping[str, Any] | None = None) -> int:
-    """Queue projections that a query will probably ask for next; return how many.
+    """Queue projections that a query will probably ask for next, all at once; return how
+    many.
 
     Lets the workers run a query's next parametrizations while Prolog is still
     evaluating the current one. Invalid ones are skipped here: :func:`project`
     reports their errors when (and if) they are asked for.
     """
-    queued = 0
+    jobs = []
     for params in params_list:
         try:
-            submit(scenario, program, params, timeout, owner, physics)
-            queued += 1
+            jobs.append(Job.checked(scenario, program, params, physics))
         except ProjectionError:
             pass
-    return queued
+    if jobs:
+        _get_backend().submit_all(jobs, timeout,
+                                  owner if owner is not None else _thread_owner())
+    return len(jobs)
+
+
+def prefetch_plan(program: str, params_list: list[dict[str, Any]],
+                  depth: int) -> list[list[int]]:
+    """Which of a query's parametrizations ``params_list`` (in the order it asks for them)
+    to :func:`prefetch` when it comes to each: a list of indices per parametrization.
+
+    When the query asks for parametrization ``i``, the families of the next ones, up to
+    ``depth + 1`` families from ``i`` on, are queued, each family whole (the parametrizations
+    that may share their first steps, :meth:`Job.family`; up to :data:`FAMILY_BATCH` at a
+    time): a worker takes a family's projections together and steps what they share once.
+    A parametrization of a program that shares nothing is a family of its own, so its query
+    keeps ``depth`` projections queued ahead of the one it waits for.
+    """
+    try:
+        shared = _programs.get(program)
+    except ProjectionError:
+        shared = None
+    families: list[Any] = []
+    sizes: dict[Any, int] = {}
+    for index, params in enumerate(params_list):
+        try:
+            setup = shared.setup(shared.check(params)) if shared is not None else None
+        except ProjectionError:
+            setup = None
+        family = (index,) if setup is None else setup
+        # A large family goes in batches, so a query never queues more than that at once.
+        batch = sizes.get(family, 0)
+        sizes[family] = batch + 1
+        families.append((family, batch // FAMILY_BATCH))
+    members: dict[Any, list[int]] = {}
+    for index, family in enumerate(families):
+        members.setdefault(family, []).append(index)
+    queued: set[Any] = set()
+    plan = []
+    for index in range(len(families)):
+        ahead: list[Any] = []
+        for family in itertools.islice(families, index, None):
+            if family not in ahead:
+                ahead.append(family)
+                if len(ahead) > depth:
+                    break
+        new = [family for family in ahead if family not in queued]
+        queued.update(new)
+        plan.append([i for family in new for i in members[family]])
+    return plan
 
 
 def cancel(owner: str) -> int:

@@ -135,8 +135,11 @@ simulate(Scenario, Program, Params, Options, Log) :-
     findall(Values, ( instantiate(Choices, Pairs),
                       dict_pairs(Values, params, Pairs) ), All),
     py_call('projection_server.projection':workers(), Depth),
-    nth0(I, All, Values),
-    prefetch(Description, Program, All, I, Depth, Timeout, Physics),
+    py_call('projection_server.projection':prefetch_plan(Program, All, Depth), Plan),
+    Table =.. [params|All],
+    pairs_keys_values(Steps, All, Plan),
+    nth0(I, Steps, Values-Ahead),
+    prefetch(Description, Program, Table, Ahead, Timeout, Physics),
     maplist(bind_choice(Values), Choices),
     run_simulation(Description, Program, Values, Timeout, Physics, Log),
     length(All, Total),
@@ -145,24 +148,17 @@ simulate(Scenario, Program, Params, Options, Log) :-
 bind_choice(Values, choice(Var, Name, _)) :-
     get_dict(Name, Values, Var).
 
-% While the workers simulate parametrization I, the next Depth ones are
-% queued, so a query that backtracks finds them done or under way.  The first
-% call queues 0..Depth, 0 first (behind its successors, it would wait for one
-% of them); each later one only the parametrization that enters the window:
-% the others are queued already, and queueing them again costs a check and a
-% key each (a third of a cached query).
-prefetch(Description, Program, All, I, Depth, Timeout, Physics) :-
-    To is I + Depth,
-    (   I =:= 0
-    ->  From = 0
-    ;   From = To
-    ),
-    findall(V, ( between(From, To, J), nth0(J, All, V) ), Next),
-    (   Next == []
-    ->  true
-    ;   py_call('projection_server.projection':prefetch(Description, Program, Next,
-                                                        Timeout, physics=Physics), _)
-    ).
+% While the workers simulate parametrization I, the ones the plan names for I
+% are queued (the plan is projection:prefetch_plan/3's), so a query that
+% backtracks finds them done or under way: the next Depth ones, or, for a
+% program whose parametrizations share their first steps, the next Depth+1
+% families of them, each family at once.  Each is queued once: queueing it
+% again would cost a check and a key (a third of a cached query).
+prefetch(_, _, _, [], _, _) :- !.
+prefetch(Description, Program, Table, Ahead, Timeout, Physics) :-
+    findall(V, ( member(J, Ahead), A is J + 1, arg(A, Table, V) ), Next),
+    py_call('projection_server.projection':prefetch(Description, Program, Next,
+                                                    Timeout, physics=Physics), _).
 
 projection_options(_, Timeout, Timeout, _{}) :-
     number(Timeout), !,

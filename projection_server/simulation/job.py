@@ -80,6 +80,17 @@ class Job:
         """The settings this projection runs with, given those of the settings file."""
         return settings.for_projection(self.program, self.physics)
 
+    def family(self, settings: Settings) -> str | None:
+        """Equal for projections that may share their first steps
+        (:mod:`~projection_server.simulation.branching`): same scenario, program, settings
+        and set-up parameters. None if the program does not say which parameters set up."""
+        setup = get_program(self.program).setup(self.params)
+        if setup is None:
+            return None
+        text = canonical_json({'scenario': self.scenario, 'program': self.program,
+                               'setup': setup, 'settings': self.settings(settings).to_dict()})
+        return hashlib.sha256(text.encode()).hexdigest()
+
     def key(self, settings: Settings) -> str:
         """Content hash of job, its settings and the code version: the cache key and the
         bag's name. Physics chosen by the query count as what they amount to, so choosing

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.simulation.settings import Settings
 
-__all__ = ['Simulator', 'projection_info', 'run_projection']
+__all__ = ['Projection', 'Simulator', 'projection_info', 'run_projection']
 
 
 class Simulator:
@@ -54,32 +54,49 @@ class Simulator:
         """
         from projection_server.timeline.translate import translate_records
 
-        scenario = parse_scenario(job.scenario)
-        program = get_program(job.program)
-        info = projection_info(job, settings, scenario.name)
-        settings = job.settings(settings)
-        physics = build_world(self.client, scenario, settings)
-        task = program.create(physics, scenario, dict(job.params),
-                              np.random.default_rng(int(info['job_key'][:16], 16)))
-        rate = settings.physics.rate_hz
-        control, log = settings.control.steps_per_control, settings.control.steps_per_log
-        steps = math.ceil(task.duration * rate - 1e-9)
-        finished = getattr(task, 'finished', None)
         with BagWriter(bag_path) as bag:
-            monitor = Monitor(physics, bag)
-            monitor.start(info)
-            for step in range(steps):
-                if step % control == 0:
-                    task.control(physics)
-                physics.step()
-                if physics.step_count % log == 0:
-                    monitor.sample()
-                    if finished is not None and finished(physics):
-                        break
-        return translate_records(monitor.records, bag_path)
+            projection = Projection(self.client, job, settings, bag)
+            projection.advance()
+        return translate_records(projection.monitor.records, bag_path)
 
     def close(self) -> None:
         self.client.disconnect()
+
+
+class Projection:
+    """One projection under way: ``job``'s fresh world in ``client``, its task and its
+    monitor logging into ``bag`` (a :class:`~projection_server.bags.BagWriter`, or what
+    writes like one), at step 0 with the ``/projection/info`` written."""
+
+    def __init__(self, client: Any, job: Job, settings: Settings, bag: Any):
+        self.scenario = scenario = parse_scenario(job.scenario)
+        info = projection_info(job, settings, scenario.name)
+        self.physics = physics = build_world(client, scenario, job.settings(settings))
+        self.task = get_program(job.program).create(
+            physics, scenario, dict(job.params),
+            np.random.default_rng(int(info['job_key'][:16], 16)))
+        self.monitor = Monitor(physics, bag)
+        self.monitor.start(info)
+
+    def advance(self, until: int | None = None) -> None:
+        """Step on to step ``until``; None: to the program's end, its duration or the
+        first sample after which the task has ``finished``."""
+        physics, task, monitor = self.physics, self.task, self.monitor
+        control = physics.settings.control.steps_per_control
+        log = physics.settings.control.steps_per_log
+        finished = None
+        if until is None:
+            until = math.ceil(task.duration * physics.settings.physics.rate_hz - 1e-9)
+            finished = getattr(task, 'finished', None)
+        step = physics.step
+        while physics.step_count < until:
+            if physics.step_count % control == 0:
+                task.control(physics)
+            step()
+            if physics.step_count % log == 0:
+                monitor.sample()
+                if finished is not None and finished(physics):
+                    break
 
 
 def projection_info(job: Job, settings: Settings, scenario_name: str) -> dict[str, str]:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable, TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
     from concurrent.futures import Future
     from pathlib import Path
 
@@ -54,6 +55,10 @@ class WorkerBackend(Protocol):
         Raises:
             ProjectionError: ``invalid_parameters`` for a bad timeout, ``pool_closed``.
         """
+
+    def submit_all(self, jobs: Sequence[Job], timeout: float,
+                   owner: str | None = None) -> list[Future[ProjectionResult]]:
+        """:meth:`submit` each of ``jobs``, queued together."""
 
     def cancel(self, owner: str, running: bool = True) -> int:
         """Cancel the queued and running jobs that only ``owner`` asked for; their futures

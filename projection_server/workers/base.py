@@ -18,7 +18,7 @@ from projection_server.workers.bag_store import BagStore
 from projection_server.workers.requests import check_timeout, Requests
 
 if TYPE_CHECKING:
-    from collections.abc import Mapping
+    from collections.abc import Mapping, Sequence
     from concurrent.futures import Future
     import os
 
@@ -68,15 +68,25 @@ class BackendBase(ABC):
                owner: str | None = None) -> Future[ProjectionResult]:
         """Queue ``job``; its simulation may take ``timeout`` seconds of wall-clock time,
         counted from when a worker takes it. Identical jobs share one future."""
+        return self.submit_all([job], timeout, owner)[0]
+
+    def submit_all(self, jobs: Sequence[Job], timeout: float,
+                   owner: str | None = None) -> list[Future[ProjectionResult]]:
+        """:meth:`submit` each of ``jobs``, queued at once (so that a worker can take the
+        projections of one family together)."""
         check_timeout(timeout)
-        key = job.key(self.settings)
+        keys = [job.key(self.settings) for job in jobs]
+        futures = []
         with self._lock:
             if self._closed:
                 raise ProjectionError('pool_closed', 'the projection backend is closed')
-            request, new = self._requests.add(job, key, timeout, owner)
-            if new:
-                self._enqueue(request)
-        return request.future
+            for job, key in zip(jobs, keys):
+                request, new = self._requests.add(job, key, timeout, owner)
+                if new:
+                    request.family = job.family(self.settings)
+                    self._enqueue(request)
+                futures.append(request.future)
+        return futures
 
     @abstractmethod
     def _enqueue(self, request: Request) -> None:
@@ -87,12 +97,14 @@ class BackendBase(ABC):
 
         A queued one is dropped, a running one stops its worker (which is replaced); their
         futures fail with kind ``cancelled``. With ``running`` False only the queued ones
-        are dropped: the running ones finish and their bags are kept.
+        are dropped: the running ones finish and their bags are kept (in the local pool, a
+        tree of projections sharing their first steps stops once none of those it has not
+        made is wanted).
         """
         cancelled = 0
         with self._lock:
             for request in self._requests.only_for(owner):
-                if not running and request.future.running():
+                if not running and not self._droppable(request):
                     continue
                 request.cancelled = True
                 cancelled += 1
@@ -100,6 +112,11 @@ class BackendBase(ABC):
                     self._requests.fail(request, ProjectionError(
                         'cancelled', f'projection {request.key[:12]} was cancelled'))
         return cancelled
+
+    def _droppable(self, request: Request) -> bool:
+        """Whether dropping an owner's projections (``cancel(owner, running=False)``) takes
+        ``request``: if it is queued. Called with the lock."""
+        return not request.future.running()
 
     @abstractmethod
     def _stop(self, request: Request) -> bool:

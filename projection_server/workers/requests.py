@@ -47,6 +47,7 @@ class Request:
     future: Future[ProjectionResult]
     owners: set[str | None] = field(default_factory=set)
     cancelled: bool = False
+    family: str | None = None   # Job.family: projections that may share their first steps
 
 
 class Requests:

@@ -5,9 +5,11 @@ from __future__ import annotations
 import copy
 from dataclasses import astuple
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from projection_server.simulation import Job, ProjectionError
 from projection_server.simulation.programs import get as get_program
@@ -15,35 +17,7 @@ from projection_server.simulation.scenario import parse_scenario
 from projection_server.timeline import pouring
 from projection_server.timeline.translate import translate_bag
 
-# The knowledge base's pouring scenario (keys and values of prolog/kb/kitchen.ttl; the robot,
-# parked out of the way, is left out).
-POURING = {
-    'name': 'pouring',
-    'entities': [
-        {'name': 'kitchen_env', 'class': 'environment', 'properties': {'gravity': 9.81},
-         'parts': [
-             {'name': 'floor1', 'class': 'floor',
-              'properties': {'shape': 'plane', 'mass': 0.0, 'friction': 0.6}},
-             {'name': 'table1', 'class': 'table', 'pose': {'xyz': [0.0, 0.0, 0.70]},
-              'properties': {'shape': 'box', 'size_x': 1.2, 'size_y': 0.8, 'size_z': 0.04,
-                             'height': 0.72, 'mass': 0.0, 'friction': 0.6,
-                             'restitution': 0.1}}]},
-        {'name': 'cup1', 'class': 'cup', 'pose': {'xyz': [0.0, 0.0, 0.825]},
-         'properties': {'shape': 'cup', 'mass': 0.2, 'friction': 1.0, 'restitution': 0.1,
-                        'height': 0.11, 'wall_thickness': 0.004, 'radius': 0.045},
-         'parts': [
-             {'name': 'pancake_mix1', 'class': 'particle_fluid',
-              'pose': {'xyz': [0.0, 0.0, 0.825]},
-              'properties': {'shape': 'sphere', 'friction': 0.35, 'restitution': 0.0,
-                             'particle_radius': 0.0048, 'particle_count': 300,
-                             'particle_mass': 0.0005, 'rolling_friction': 0.02,
-                             'spinning_friction': 0.02, 'damping': 30.0,
-                             'container': 'cup1'}}]},
-        {'name': 'pancake_maker1', 'class': 'pancake_maker', 'pose': {'xyz': [0.0, 0.0, 0.735]},
-         'properties': {'shape': 'cylinder', 'mass': 0.0, 'friction': 0.7,
-                        'restitution': 0.05, 'height': 0.03, 'radius': 0.15}},
-    ],
-}
+POURING = yaml.safe_load((Path(__file__).parent / 'pouring.yaml').read_text())
 COUNT = 300
 
 

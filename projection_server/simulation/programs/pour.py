@@ -48,11 +48,7 @@ class Pour:
         if cup is None or maker is None:
             raise ProjectionError('invalid_scenario', 'pour needs a cup and a pancake_maker')
         c = physics.client
-        self.angle, self.hold = params['angle'], params['time']
-        self.tilted = SETTLE + self.angle / TILT_RATE
-        self.released = self.tilted + self.hold
-        self.upright = self.released + self.angle / TILT_RATE
-        self.duration = self.upright + AFTER
+        self._schedule(params)
         self._client, self._cup = c, physics.body(cup.name).body_id
         radius, height = cup.properties['radius'], cup.properties['height']
         start, _ = physics.pose(cup.name)
@@ -87,15 +83,26 @@ class Pour:
         self._particles = [b for fluid in physics.fluids.values() for b in fluid.body_ids]
         physics.step_hooks.append(self._follow)
 
+    def _schedule(self, params: dict[str, float]) -> None:
+        self.angle, self.hold = params['angle'], params['time']
+        self.tilted = SETTLE + self.angle / TILT_RATE
+        self.released = self.tilted + self.hold
+        self.upright = self.released + self.angle / TILT_RATE
+        self.duration = self.upright + AFTER
+
     def tilt(self, t: float) -> float:
         """Commanded tilt angle [rad] at time ``t`` [s]."""
-        if t <= SETTLE:
-            return 0.0
-        if t <= self.tilted:
-            return (t - SETTLE) * TILT_RATE
-        if t <= self.released:
-            return self.angle
-        return max(self.angle - (t - self.released) * TILT_RATE, 0.0)
+        return tilt(self.angle, self.hold, t)
+
+    def command_at(self, params: dict[str, float], step: int) -> float:
+        """The tilt that ``params`` command for the step after ``step`` (see ``_follow``)."""
+        return tilt(params['angle'], params['time'],
+                    step / self._physics.settings.physics.rate_hz + self._lead)
+
+    def retarget(self, params: dict[str, float]) -> None:
+        """Go on with the angle and time of ``params`` from the current step."""
+        self._schedule(params)
+        self._follow()
 
     def lip_height(self, theta: float) -> float:
         """Height [m] of the lip above the maker's top at tilt ``theta``: the cup's lowest
@@ -136,6 +143,18 @@ class Pour:
             maxForce=CUP_HOLD_FORCE)
 
 
+def tilt(angle: float, hold: float, t: float) -> float:
+    """The tilt [rad] commanded at time ``t`` [s] of a pour to ``angle`` held ``hold`` s."""
+    if t <= SETTLE:
+        return 0.0
+    tilted = SETTLE + angle / TILT_RATE
+    if t <= tilted:
+        return (t - SETTLE) * TILT_RATE
+    if t <= tilted + hold:
+        return angle
+    return max(angle - (t - (tilted + hold)) * TILT_RATE, 0.0)
+
+
 PROGRAM = register(Program(
     name='pour',
     params=(
@@ -147,4 +166,5 @@ PROGRAM = register(Program(
     ),
     create=Pour,
     doc=__doc__.splitlines()[0],
+    setup_params=('position',),   # where the cup is put; angle and time act by tilting
 ))

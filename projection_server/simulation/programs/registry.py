@@ -40,6 +40,13 @@ class Task(Protocol):
 
     A task may also have ``finished(physics) -> bool``, asked after every monitoring
     sample: the projection ends at the first sample at which it is true.
+
+    The task of a program with ``setup_params`` also has ``command_at(params, step)``, what
+    it would command for the step after ``step`` with the parameters ``params`` (hashable:
+    equal commands are equal values), and ``retarget(params)``, which makes it go on with
+    ``params`` from the current step. ``params`` then differ from the task's own only in
+    parameters that are not set-up parameters, and ``finished`` is false until the commands
+    of any two such parametrizations have differed.
     """
 
     duration: float
@@ -54,12 +61,19 @@ class Program:
 
     ``create(physics, scenario, params, rng)`` sets the program's robot up in a freshly built
     world and returns its :class:`Task`; ``rng`` is seeded from the projection's key.
+
+    ``setup_params`` names the parameters that act when the world is set up; the others act
+    only through the task's commands. Parametrizations that agree in them step alike until
+    their commands part, so they can share those steps
+    (:mod:`projection_server.simulation.branching`). None (the default): the program does not
+    say, and each parametrization runs from the start.
     """
 
     name: str
     params: tuple[Parameter, ...]
     create: Callable[[Physics, Scenario, dict[str, float], np.random.Generator], Task]
     doc: str = ''
+    setup_params: tuple[str, ...] | None = None
 
     def check(self, values: Mapping[str, Any]) -> dict[str, float]:
         """Actual parameter values: given ones checked against their ranges, defaults added.
@@ -89,6 +103,13 @@ class Program:
                     f'[{param.min}, {param.max}]')
             checked[name] = float(value)
         return checked
+
+    def setup(self, values: Mapping[str, float]) -> tuple[float, ...] | None:
+        """The set-up parameters' values of checked ``values``: parametrizations with equal
+        ones (and the same scenario and settings) may share steps. None if they may not."""
+        if self.setup_params is None:
+            return None
+        return tuple(values[name] for name in self.setup_params)
 
     def describe(self) -> dict[str, Any]:
         return {'program': self.name, 'doc': self.doc,

@@ -17,14 +17,21 @@ projections (at once, not when the next projection comes).
 The worker translates its projection into a timeline from the samples it has in memory and
 sends it back with the bag, so the parent never reads the bag it just had written. Bags go
 to a :class:`~projection_server.workers.bag_store.BagStore`.
+
+Queued projections of one family (a program whose parametrizations share their first steps,
+from the same set-up, :mod:`projection_server.simulation.branching`) are taken together, up
+to a fair share of the queue per worker, and run as one tree: their shared steps once. A
+worker that dies or runs over time in a tree is replaced, and the tree's projections it had
+not finished run again one by one, each with its own time limit.
 """
 
 from __future__ import annotations
 
+from collections import deque
 import logging
+import math
 import multiprocessing
 from multiprocessing.connection import wait
-import queue
 import shutil
 import threading
 from typing import Any, NoReturn, TYPE_CHECKING
@@ -68,7 +75,8 @@ class WorkerPool(BackendBase):
                          max_projections)
         self.warm_up = warm_up
         self._context = multiprocessing.get_context(start_method)
-        self._queue: queue.Queue[Request | None] = queue.Queue()
+        self._pending: deque[Request] = deque()
+        self._ready = threading.Condition(self._lock)
         self._slots = [_Slot(self, i) for i in range(workers)]
 
     @property
@@ -87,7 +95,34 @@ class WorkerPool(BackendBase):
         return [slot.pid for slot in self._slots]
 
     def _enqueue(self, request: Request) -> None:
-        self._queue.put(request)
+        self._pending.append(request)
+        self._ready.notify()
+
+    def _take(self) -> list[Request]:
+        """The next queued request, with the queued ones of its family up to a fair share
+        per worker, all marked running; [] if none is left (with the lock)."""
+        while self._pending:
+            first = self._pending.popleft()
+            if not first.future.done() and first.future.set_running_or_notify_cancel():
+                break
+        else:
+            return []
+        if first.family is None:
+            return [first]
+        # A fair share of what is left to do, queued or under way in the other workers.
+        busy = sum(not r.future.done() for slot in self._slots for r in slot.requests)
+        share = math.ceil((len(self._pending) + 1 + busy) / len(self._slots))
+        taken, others = [first], deque()
+        for request in self._pending:
+            if request.future.done():
+                continue
+            if (len(taken) < share and request.family == first.family
+                    and request.future.set_running_or_notify_cancel()):
+                taken.append(request)
+            else:
+                others.append(request)
+        self._pending = others
+        return taken
 
     def run(self, job: Job, timeout: float) -> str:
         """Run ``job`` (or find its bag) and return the bag's path.
@@ -103,11 +138,20 @@ class WorkerPool(BackendBase):
                 if not any(slot.alive for slot in self._slots):
                     raise ProjectionError('pool_closed', 'no worker supervisor is running')
 
+    def _droppable(self, request: Request) -> bool:
+        # A tree runs its projections one after the other: those it has not made yet are
+        # dropped like queued ones (see _stop).
+        return not request.future.running() or any(
+            request in slot.requests and len(slot.requests) > 1 for slot in self._slots)
+
     def _stop(self, request: Request) -> bool:
         if not request.future.running():
             return False   # queued: its slot skips it
         for slot in self._slots:
-            if slot.request is request:
+            # A tree stops once none of its unfinished projections is wanted any more; the
+            # one it was making then fails as cancelled with the others.
+            if request in slot.requests and all(
+                    r.cancelled for r in slot.requests if not r.future.done()):
                 slot.terminate_worker()
         return True
 
@@ -117,17 +161,12 @@ class WorkerPool(BackendBase):
             if self._closed:
                 return
             self._closed = True
-        while True:
-            try:
-                request = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            if request is not None and not request.future.done() \
-                    and request.future.set_running_or_notify_cancel():
-                request.future.set_exception(
-                    ProjectionError('pool_closed', 'the projection pool was closed'))
-        for _ in self._slots:
-            self._queue.put(None)
+            pending, self._pending = self._pending, deque()
+            for request in pending:
+                if not request.future.done() and request.future.set_running_or_notify_cancel():
+                    request.future.set_exception(
+                        ProjectionError('pool_closed', 'the projection pool was closed'))
+            self._ready.notify_all()
         for slot in self._slots:
             slot.terminate_worker()   # a running projection fails with kind pool_closed
         for slot in self._slots:
@@ -142,7 +181,7 @@ class _Slot:
         self._process: Any = None
         self._conn: Any = None
         self._projections = 0   # made by the running worker process
-        self.request: Request | None = None
+        self.requests: list[Request] = []   # the projections it runs (a tree's, or one)
         self.warmed: dict[str, Any] | None = None   # the running worker's warm-up
         self._thread = threading.Thread(target=self._loop, name=f'projection-worker-{index}',
                                         daemon=True)
@@ -176,31 +215,18 @@ class _Slot:
                 self._ensure_worker()
             except ProjectionError:
                 pass   # the first projection tries again and reports it
-            while (request := pool._queue.get()) is not None:
-                with pool._lock:
-                    future = request.future
-                    if future.done() or not future.set_running_or_notify_cancel():
-                        continue
-                    self.request = request
-                try:
-                    result = self._execute(request)
-                except ProjectionError as exc:
-                    if request.cancelled and exc.kind == 'worker_crashed':
-                        exc = ProjectionError(
-                            'cancelled', f'projection {request.key[:12]} was cancelled')
-                    elif exc.kind in ('worker_crashed', 'timeout'):
-                        _log.warning('%s; a new worker starts for the next projection', exc)
-                    with pool._lock:
-                        pool._requests.fail(request, exc)
-                except Exception as exc:  # a bug here must fail the projection, not hang it
-                    with pool._lock:
-                        pool._requests.fail(request, ProjectionError(
-                            'simulation_failed', f'{type(exc).__name__}: {exc}'))
-                else:
-                    request.future.set_result(result)
-                    self._projections += 1
-                finally:
-                    self.request = None
+            while True:
+                with pool._ready:
+                    while not pool._pending and not pool._closed:
+                        pool._ready.wait()
+                    if pool._closed:
+                        return
+                    self.requests = requests = pool._take()
+                left = self._run_tree(requests) if len(requests) > 1 else requests
+                for request in left:
+                    self.requests = [request]
+                    self._run(request)
+                self.requests = []
                 if pool._closed:
                     continue
                 if self._projections >= pool.max_projections:
@@ -212,6 +238,79 @@ class _Slot:
                         pass   # the next projection tries again and reports it
         finally:
             self._stop()
+
+    def _run(self, request: Request) -> None:
+        """Run ``request`` (already marked running) and settle its future."""
+        pool = self._pool
+        try:
+            if pool._closed:
+                raise ProjectionError('pool_closed', 'the projection pool was closed')
+            if request.cancelled:
+                raise ProjectionError('cancelled', f'projection {request.key[:12]} was cancelled')
+            result = self._execute(request)
+        except ProjectionError as exc:
+            if request.cancelled and exc.kind == 'worker_crashed':
+                exc = ProjectionError(
+                    'cancelled', f'projection {request.key[:12]} was cancelled')
+            elif exc.kind in ('worker_crashed', 'timeout'):
+                _log.warning('%s; a new worker starts for the next projection', exc)
+            with pool._lock:
+                pool._requests.fail(request, exc)
+        except Exception as exc:  # a bug here must fail the projection, not hang it
+            with pool._lock:
+                pool._requests.fail(request, ProjectionError(
+                    'simulation_failed', f'{type(exc).__name__}: {exc}'))
+        else:
+            request.future.set_result(result)
+            self._projections += 1
+
+    def _run_tree(self, requests: list[Request]) -> list[Request]:
+        """Run a family's ``requests`` as one tree and settle the futures of those it
+        finishes; the others (its worker died or ran over time) are returned, to be run one
+        by one."""
+        pool, store = self._pool, self._pool.store
+        left = dict(enumerate(requests))
+        what = f'a tree of {len(requests)} projections from {requests[0].key[:12]}'
+        _log.debug('%s', what)
+        tmp = store.tmp_dir()
+        bags = [tmp / store.name(r.job, r.key) for r in requests]
+        try:
+            self._ensure_worker()
+            try:
+                self._conn.send(('tree', [(r.job, str(b)) for r, b in zip(requests, bags)]))
+            except OSError:   # the worker died while idle
+                self._died(what)
+            while True:
+                # Each projection of a tree has its limit from the end of the one before.
+                timeout = max((r.timeout for r in left.values()), default=pool.startup_timeout)
+                index, result, ok = self._receive(timeout, what)
+                if index is None:
+                    break
+                request = left.pop(index)
+                if not ok:
+                    with pool._lock:
+                        pool._requests.fail(request, result)
+                    continue
+                try:
+                    final = store.publish(bags[index])
+                except Exception as exc:
+                    with pool._lock:
+                        pool._requests.fail(request, ProjectionError(
+                            'simulation_failed', f'{type(exc).__name__}: {exc}'))
+                    continue
+                result['meta']['bag'] = str(final)
+                request.future.set_result(ProjectionResult(str(final), result))
+                self._projections += 1
+        except ProjectionError as exc:
+            if exc.kind in ('worker_crashed', 'timeout') and left:
+                _log.warning('%s; a new worker runs its %d unfinished projections one by one',
+                             exc, len(left))
+        except Exception as exc:  # a bug here must not lose the projections left
+            _log.error('%s failed: %s: %s', what, type(exc).__name__, exc)
+            self._kill()
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        return list(left.values())
 
     def _execute(self, request: Request) -> ProjectionResult:
         self._ensure_worker()

@@ -3,9 +3,12 @@
 Start-up pays once what every projection would otherwise pay again: imports, the PyBullet
 connection, message type registration and asset parsing, and a throw-away projection for
 what only a first projection sets up (:mod:`projection_server.workers.warm_up`); the ready
-message says how long that took. Each command is answered with
+message says how long that took. A ``project`` command is answered with
 ``(result, ok)``; a projection's result is its timeline, made from the samples the worker
-has in memory (:mod:`projection_server.timeline.translate`).
+has in memory (:mod:`projection_server.timeline.translate`). A ``tree`` command (projections
+that share their first steps, :mod:`projection_server.simulation.branching`) is answered
+with ``(index, result, ok)`` for each projection as it ends, then ``(None, complete, True)``,
+where ``complete`` is False if a process of the tree crashed before it reported.
 """
 
 from __future__ import annotations
@@ -52,6 +55,9 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
             if command == 'close':
                 return
             try:
+                if command == 'tree':
+                    _tree(conn, simulator, payload, parsed)
+                    continue
                 job, path = payload
                 conn.send((simulator.run(job, parsed, Path(path)), True))
             except ProjectionError as exc:
@@ -62,3 +68,14 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
                     f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'), False))
     finally:
         simulator.close()
+
+
+def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: Any) -> None:
+    from projection_server.simulation.branching import run_tree
+
+    try:
+        complete = run_tree(simulator.client, [(job, Path(path)) for job, path in payload],
+                            settings, lambda index, result, ok: conn.send((index, result, ok)))
+    except Exception:   # e.g. fork failed: the pool runs what was not reported one by one
+        complete = False
+    conn.send((None, complete, True))

@@ -1,0 +1,172 @@
+"""Projections that part only after their set-up: the steps they share once, then a fork.
+
+Parametrizations of a program with ``setup_params`` that agree in them (pours from one
+position at several angles and times) step alike until their commands first differ.
+:func:`run_tree` runs them as a tree of processes: a process steps while the commands of
+all its parametrizations agree, then forks a child for each group whose commands for the
+next step agree, and each child goes on with its group's parameters (the task's
+``retarget``). A child's PyBullet world is its parent's memory, so it continues exactly,
+which ``restoreState`` does not: every leaf's bag is, byte for byte, the bag of a straight
+:meth:`~projection_server.simulation.runner.Simulator.run` (tests compare them).
+
+The monitor's messages of the shared steps are kept, not written. Each leaf writes a bag of
+its own: its own ``/projection/info`` first, then the kept messages in the order they were
+made, then those of its own steps.
+
+A parent waits for each child before it forks the next, so a tree uses one core, like one
+projection at a time. Every child dies with its parent (``PR_SET_PDEATHSIG``): stopping the
+process that called :func:`run_tree` stops its whole tree.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+import signal
+import traceback
+from typing import Any, Callable, TYPE_CHECKING
+
+from projection_server.bags import BagWriter, TOPICS, typestore
+from projection_server.simulation.errors import ProjectionError
+from projection_server.simulation.monitor import Record
+from projection_server.simulation.runner import Projection, projection_info
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from pathlib import Path
+
+    from projection_server.simulation.job import Job
+    from projection_server.simulation.settings import Settings
+
+__all__ = ['Report', 'run_tree']
+
+# report(index, timeline or ProjectionError, ok): once per leaf, from the leaf's process.
+Report = Callable[[int, Any, bool], None]
+_PR_SET_PDEATHSIG = 1
+
+
+def run_tree(client: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
+             report: Report) -> bool:
+    """Run the projections ``leaves`` (a job and the path of its new bag each; all of one
+    program, scenario, physics and set-up parameters) as a tree of processes below the
+    calling one, in ``client``'s PyBullet world, and ``report`` each.
+
+    Returns whether every process of the tree ended normally; if not (one crashed), the
+    leaves it had not reported yet are not reported.
+    """
+    parent = os.getpid()
+    pid = os.fork()
+    if pid == 0:
+        code = 1
+        try:
+            _die_with(parent)
+            code = _root(client, list(enumerate(leaves)), settings, report)
+        finally:
+            os._exit(code)
+    return os.waitpid(pid, 0)[1] == 0
+
+
+class _SharedLog:
+    """Writes like a :class:`~projection_server.bags.BagWriter`, but only keeps the calls,
+    to be made again into each leaf's bag."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[str, tuple[Any, ...]]] = []
+        self._types = typestore().types
+
+    def new(self, msgtype: str, **fields: Any) -> Any:
+        return self._types[msgtype](**fields)
+
+    def write(self, topic: str, message: Any, t_ns: int) -> None:
+        self.calls.append(('write', (topic, message, t_ns)))
+
+    def write_sample(self, t_ns: int, messages: Any) -> None:
+        self.calls.append(('write_sample', (t_ns, list(messages))))
+
+
+def _root(client: Any, group: list[tuple[int, tuple[Job, Path]]], settings: Settings,
+          report: Report) -> int:
+    try:
+        log = _SharedLog()
+        projection = Projection(client, group[0][1][0], settings, log)
+    except Exception as exc:
+        return _fail(group, exc, report)
+    return _grow(projection, log, group, settings, report)
+
+
+def _grow(projection: Projection, log: _SharedLog, group: list[tuple[int, tuple[Job, Path]]],
+          settings: Settings, report: Report) -> int:
+    """Step ``group``'s shared steps, then fork its subgroups (or end its one leaf); the
+    exit code of the process: 0 unless a child ended abnormally."""
+    physics, task = projection.physics, projection.task
+    try:
+        task.retarget(dict(group[0][1][0].params))
+        if len(group) == 1:
+            _leaf(projection, log, group[0], settings, report)
+            return 0
+        params = [dict(job.params) for _, (job, _) in group]
+        end = math.ceil(task.duration * physics.settings.physics.rate_hz - 1e-9)
+        step = physics.step_count
+        while step < end and len({task.command_at(p, step) for p in params}) == 1:
+            step += 1
+        projection.advance(step)
+        subgroups: dict[Any, list[tuple[int, tuple[Job, Path]]]] = {}
+        for member, p in zip(group, params):
+            # Commands that never part (to the first one's end): each its own leaf.
+            key = task.command_at(p, step) if step < end else member[0]
+            subgroups.setdefault(key, []).append(member)
+    except Exception as exc:
+        return _fail(group, exc, report)
+    code = 0
+    for subgroup in subgroups.values():
+        parent = os.getpid()
+        pid = os.fork()
+        if pid == 0:
+            child = 1
+            try:
+                _die_with(parent)
+                child = _grow(projection, log, subgroup, settings, report)
+            finally:
+                os._exit(child)
+        if os.waitpid(pid, 0)[1] != 0:
+            code = 1
+    return code
+
+
+def _leaf(projection: Projection, log: _SharedLog, member: tuple[int, tuple[Job, Path]],
+          settings: Settings, report: Report) -> None:
+    from projection_server.timeline.translate import translate_records
+
+    index, (job, path) = member
+    monitor = projection.monitor
+    shared = log.calls
+    with BagWriter(path) as bag:
+        info = bag.new(shared[0][1][1].__msgtype__, header=shared[0][1][1].header,
+                       **projection_info(job, settings, projection.scenario.name))
+        bag.write(TOPICS['info'], info, 0)
+        for method, args in shared[1:]:
+            getattr(bag, method)(*args)
+        monitor.bag = bag
+        monitor.records[0] = Record('info', 0, info)
+        projection.advance()
+    report(index, translate_records(monitor.records, path), True)
+
+
+def _fail(group: list[tuple[int, tuple[Job, Path]]], exc: Exception, report: Report) -> int:
+    if not isinstance(exc, ProjectionError):
+        exc = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}\n'
+                                                   f'{traceback.format_exc(limit=8)}')
+    for index, _ in group:
+        report(index, exc, False)
+    return 0
+
+
+def _die_with(parent: int) -> None:
+    """Make the calling (forked) process die when ``parent`` does."""
+    try:
+        ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (AttributeError, OSError):   # not Linux: the tree outlives a killed worker
+        return
+    if os.getppid() != parent:   # it died before prctl
+        os._exit(1)

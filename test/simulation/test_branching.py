@@ -1,0 +1,206 @@
+"""Projections that share their first steps, stepped once and forked where they part
+(:mod:`projection_server.simulation.branching`): the same bags and timelines as projections
+run one by one, through the pool's trees, their failures and their cancellation."""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+import signal
+import time
+
+import pytest
+import yaml
+
+from projection_server import projection
+from projection_server.simulation import Job, load_settings, ProjectionError
+from projection_server.simulation.branching import run_tree
+from projection_server.simulation.runner import Simulator
+from projection_server.workers.bag_store import BagStore
+from projection_server.workers.local import WorkerPool
+
+# The pouring scenario with a small batter: forty particles pour in well under a second.
+SMALL = yaml.safe_load((Path(__file__).parent / 'pouring.yaml').read_text())
+SMALL['entities'][1]['parts'][0]['properties']['particle_count'] = 40
+# Two angles and two holding times: the tree parts first where the smaller angle is reached.
+FAMILY = [{'angle': a, 'time': t, 'position': 0.0} for t in (0.2, 0.4) for a in (1.9, 2.1)]
+
+
+def jobs(family=FAMILY, position=0.0):
+    return [Job.checked(SMALL, 'pour', {**p, 'position': position}) for p in family]
+
+
+def files(bag: str | Path) -> dict[str, bytes]:
+    return {f.name: f.read_bytes() for f in sorted(Path(bag).iterdir())}
+
+
+def without_bag(timeline: dict) -> dict:
+    return {**timeline, 'meta': {k: v for k, v in timeline['meta'].items() if k != 'bag'}}
+
+
+@pytest.fixture(scope='module')
+def straight(tmp_path_factory):
+    """The family's projections, each run from the start: bag files and timeline by key."""
+    settings, simulator = load_settings(), Simulator()
+    runs = {}
+    try:
+        for job in jobs():
+            key = job.key(settings)
+            bag = tmp_path_factory.mktemp('straight') / BagStore.name(job, key)
+            runs[key] = files_of(bag, simulator.run(job, settings, bag))
+    finally:
+        simulator.close()
+    return runs
+
+
+def files_of(bag: Path, timeline: dict) -> tuple[dict[str, bytes], dict]:
+    return files(bag), without_bag(timeline)
+
+
+def test_a_tree_gives_each_leaf_the_bag_and_timeline_of_its_straight_run(straight, tmp_path):
+    settings, simulator = load_settings(), Simulator()
+    reports = []
+    leaves = []
+    for job in jobs():
+        key = job.key(settings)
+        (tmp_path / key).mkdir()
+        leaves.append((job, tmp_path / key / BagStore.name(job, key)))
+    try:
+        complete = run_tree(simulator.client, leaves, settings,
+                            lambda index, result, ok: reports.append((index, result, ok)))
+    finally:
+        simulator.close()
+    # Reports come from the forked leaves; in this process they are lost, so each leaf's
+    # bag is what shows it ran.
+    assert complete and reports == []
+    for job, bag in leaves:
+        assert files(bag) == straight[job.key(settings)][0]
+
+
+def test_a_family_submitted_together_runs_as_one_tree_with_the_same_results(
+        straight, tmp_path, caplog):
+    caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
+    settings = load_settings()
+    with WorkerPool(tmp_path, workers=1) as pool:
+        results = [f.result(timeout=120.0) for f in pool.submit_all(jobs(), 60.0)]
+    assert 'a tree of 4 projections' in caplog.text
+    for job, result in zip(jobs(), results):
+        assert Path(result.bag).name == BagStore.name(job, job.key(settings))
+        assert (files(result.bag), without_bag(result.timeline)) == straight[job.key(settings)]
+
+
+def test_two_workers_share_one_family_between_them(tmp_path, caplog):
+    caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
+    with WorkerPool(tmp_path, workers=2) as pool:
+        for future in pool.submit_all(jobs(), 60.0):
+            assert os.path.isdir(future.result(timeout=120.0).bag)
+    assert caplog.text.count('a tree of 2 projections') == 2
+
+
+def test_a_tree_whose_worker_dies_runs_what_it_had_not_finished_one_by_one(straight,
+                                                                            tmp_path):
+    settings = load_settings()
+    with WorkerPool(tmp_path, workers=1) as pool:
+        worker = _warm_worker(pool)
+        futures = pool.submit_all(jobs(), 60.0)
+        tree = _descendants(worker, deadline=time.monotonic() + 30.0)
+        os.kill(worker, signal.SIGKILL)
+        results = [f.result(timeout=120.0) for f in futures]
+        assert pool.worker_pids != [worker]
+    for job, result in zip(jobs(), results):
+        assert (files(result.bag), without_bag(result.timeline)) == straight[job.key(settings)]
+    # The tree's processes died with the worker.
+    deadline = time.monotonic() + 10.0
+    while any(os.path.exists(f'/proc/{pid}') for pid in tree):
+        assert time.monotonic() < deadline, 'a process of the tree outlived its worker'
+        time.sleep(0.05)
+
+
+def test_cancelling_a_trees_owner_stops_it_and_the_pool_serves_on(tmp_path):
+    with WorkerPool(tmp_path, workers=1) as pool:
+        worker = _warm_worker(pool)
+        futures = pool.submit_all(jobs(), 60.0, owner='q/tree')
+        _descendants(worker, deadline=time.monotonic() + 30.0)
+        assert pool.cancel('q/tree') == 4
+        for future in futures:
+            with pytest.raises(ProjectionError) as info:
+                future.result(timeout=60.0)
+            assert info.value.kind == 'cancelled'
+        assert os.path.isdir(pool.run(jobs()[0], timeout=60.0))
+
+
+def test_dropping_a_trees_only_owner_stops_what_it_has_not_made(tmp_path):
+    with WorkerPool(tmp_path, workers=1) as pool:
+        worker = _warm_worker(pool)
+        futures = pool.submit_all(jobs(), 60.0, owner='q/once')
+        _descendants(worker, deadline=time.monotonic() + 30.0)
+        wanted = pool.submit(jobs()[3], 60.0, owner='q/other')
+        # The tree goes on for the one another owner still wants.
+        assert pool.cancel('q/once', running=False) == 3
+        assert os.path.isdir(wanted.result(timeout=120.0).bag)
+        assert pool.cancel('q/other', running=False) == 0
+        made = [f for f in futures if f.exception(timeout=60.0) is None]
+        assert futures[3] in made
+
+
+def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(tmp_path):
+    with WorkerPool(tmp_path, workers=1) as pool:
+        futures = pool.submit_all(jobs()[:2], 0.05)
+        for future in futures:
+            with pytest.raises(ProjectionError) as info:
+                future.result(timeout=120.0)
+            assert info.value.kind == 'timeout'
+        assert os.path.isdir(pool.run(jobs()[0], timeout=60.0))
+
+
+def test_the_prefetch_plan_queues_whole_families_and_depth_ahead_otherwise():
+    grasps = [{'force': f, 'position': 0.0} for f in (1, 3, 5, 7, 9)]
+    assert projection.prefetch_plan('grasp_object', grasps, 2) == [[0, 1, 2], [3], [4], [],
+                                                                    []]
+    pours = [{'angle': a, 'time': 0.5, 'position': x} for x in (0.0, 0.02, 0.04, 0.06)
+             for a in (1.9, 2.0)]
+    # Position slowest: the families of the first three positions at once, then the fourth.
+    assert projection.prefetch_plan('pour', pours, 2) == [[0, 1, 2, 3, 4, 5], [], [6, 7], [],
+                                                          [], [], [], []]
+    # Positions fastest: the same families, their members spread over the enumeration.
+    spread = [{'angle': a, 'time': 0.5, 'position': x} for a in (1.9, 2.0)
+              for x in (0.0, 0.02, 0.04)]
+    assert projection.prefetch_plan('pour', spread, 1) == [[0, 3, 1, 4], [2, 5], [], [], [],
+                                                           []]
+    many = [{'angle': 1.0 + i / 100, 'time': 0.5, 'position': 0.0} for i in range(70)]
+    plan = projection.prefetch_plan('pour', many, 1)
+    assert [len(p) for p in plan if p] == [64, 6]   # batches of FAMILY_BATCH
+    assert sorted(i for p in plan for i in p) == list(range(70))
+
+
+def _warm_worker(pool: WorkerPool) -> int:
+    """The pid of the pool's one worker, once it has warmed up."""
+    deadline = time.monotonic() + 60.0
+    while pool.warm_ups[0] is None:
+        assert time.monotonic() < deadline, 'the worker did not start'
+        time.sleep(0.01)
+    return pool.worker_pids[0]
+
+
+def _descendants(pid: int, deadline: float) -> set[int]:
+    """The processes below ``pid`` once it has forked some (a tree under way)."""
+    while True:
+        children = {}
+        for entry in os.listdir('/proc'):
+            if entry.isdigit():
+                try:
+                    stat = Path(f'/proc/{entry}/stat').read_text()
+                except OSError:
+                    continue
+                children.setdefault(int(stat.rsplit(')', 1)[1].split()[1]), []).append(
+                    int(entry))
+        found, todo = set(), [pid]
+        while todo:
+            for child in children.get(todo.pop(), []):
+                found.add(child)
+                todo.append(child)
+        if found:
+            return found
+        assert time.monotonic() < deadline, 'no tree started'
+        time.sleep(0.005)
