@@ -12,10 +12,13 @@ projections (monitor, a bag each, timeline):
 * **tree**: one tree per position, in the same pool.
 
 Prints the CPU seconds of both (a tree's summed over all its processes), their ratio, and
-whether every leaf's bag is byte for byte its straight run's and its timeline equal::
+whether every leaf's bag is byte for byte its straight run's and its timeline equal. With
+``--global``, the pours also run straight at the global settings (``rate_hz`` and
+``solver_iterations`` of config/physics.yaml's ``physics`` section, which the pour had
+before it had settings of its own): what the pour's settings and the trees save together::
 
     tools/with_env.sh python bench/prefix_sharing.py
-    tools/with_env.sh python bench/prefix_sharing.py --positions 0.0
+    tools/with_env.sh python bench/prefix_sharing.py --positions 0.0 --global
 """
 
 from __future__ import annotations
@@ -56,10 +59,10 @@ def _cpu() -> float:
     return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime
 
 
-def _job(params: dict):
+def _job(params: dict, physics: dict | None = None):
     from projection_server.simulation.job import Job
 
-    return Job.checked(_state['description'], PROGRAM, params)
+    return Job.checked(_state['description'], PROGRAM, params, physics)
 
 
 def _logged_end(bag: Path, timeline: dict) -> tuple:
@@ -73,11 +76,12 @@ def _name(params: dict) -> str:
     return '-'.join(f'{v}' for v in params.values())
 
 
-def straight(params: dict) -> tuple[dict, tuple, float]:
+def straight(params: dict, physics: dict | None = None) -> tuple[dict, tuple, float]:
     start = _cpu()
     with tempfile.TemporaryDirectory() as tmp:
         bag = Path(tmp) / 'bag'
-        end = _logged_end(bag, _state['simulator'].run(_job(params), _state['settings'], bag))
+        end = _logged_end(bag, _state['simulator'].run(_job(params, physics),
+                                                       _state['settings'], bag))
     return params, end, _cpu() - start
 
 
@@ -107,6 +111,8 @@ def main() -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--positions', type=float, nargs='*')
+    parser.add_argument('--global', dest='global_', action='store_true',
+                        help='also run the pours straight at the global settings')
     args = parser.parse_args()
     positions = args.positions or paper.POUR_POSITIONS
     trees = [[{'angle': a, 'time': t, 'position': x}
@@ -121,6 +127,14 @@ def main() -> int:
         started = time.perf_counter()
         forked = list(pool.map(tree, trees))
         tree_wall = time.perf_counter() - started
+        if args.global_:
+            from projection_server.simulation import load_settings
+
+            engine = load_settings().physics
+            physics = {'rate_hz': engine.rate_hz, 'solver_iterations': engine.solver_iterations}
+            started = time.perf_counter()
+            globals_ = list(pool.map(straight, jobs, [physics] * len(jobs)))
+            global_wall = time.perf_counter() - started
     expected = {_name(p): end for p, end, _ in straights}
     same = sum(end == expected[_name(p)] for ends, _ in forked for p, end in ends)
     straight_cpu = sum(cpu for _, _, cpu in straights)
@@ -136,6 +150,11 @@ def main() -> int:
     print(f'  straight: {straight_cpu:.1f} CPU s ({straight_wall:.1f} s wall)')
     print(f'  tree:     {tree_cpu:.1f} CPU s ({tree_wall:.1f} s wall), '
           f'{straight_cpu / tree_cpu:.2f}x less CPU')
+    if args.global_:
+        global_cpu = sum(cpu for _, _, cpu in globals_)
+        print(f'  straight at the global settings {physics}: {global_cpu:.1f} CPU s '
+              f'({global_wall:.1f} s wall), {global_cpu / straight_cpu:.2f}x the straight '
+              f'pours, {global_cpu / tree_cpu:.2f}x the trees')
     print(f'  leaves with the bag (byte for byte) and timeline of their straight run: '
           f'{same}/{count}')
     return 0 if same == count else 1

@@ -228,11 +228,15 @@ def prefetch_plan(program: str, params_list: list[dict[str, Any]],
         shared = _programs.get(program)
     except ProjectionError:
         shared = None
+    if shared is None or shared.setup_params is None:
+        count = len(params_list)
+        return [list(range(min(count, depth + 1)))] * (count > 0) + [
+            [i + depth] if i + depth < count else [] for i in range(1, count)]
     families: list[Any] = []
     sizes: dict[Any, int] = {}
     for index, params in enumerate(params_list):
         try:
-            setup = shared.setup(shared.check(params)) if shared is not None else None
+            setup = shared.setup(shared.check(params))
         except ProjectionError:
             setup = None
         family = (index,) if setup is None else setup
