@@ -55,16 +55,7 @@ def run_tree(client: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings
     Returns whether every process of the tree ended normally; if not (one crashed), the
     leaves it had not reported yet are not reported.
     """
-    parent = os.getpid()
-    pid = os.fork()
-    if pid == 0:
-        code = 1
-        try:
-            _die_with(parent)
-            code = _root(client, list(enumerate(leaves)), settings, report)
-        finally:
-            os._exit(code)
-    return os.waitpid(pid, 0)[1] == 0
+    return _forked(lambda: _root(client, list(enumerate(leaves)), settings, report)) == 0
 
 
 class _SharedLog:
@@ -120,16 +111,7 @@ def _grow(projection: Projection, log: _SharedLog, group: list[tuple[int, tuple[
         return _fail(group, exc, report)
     code = 0
     for subgroup in subgroups.values():
-        parent = os.getpid()
-        pid = os.fork()
-        if pid == 0:
-            child = 1
-            try:
-                _die_with(parent)
-                child = _grow(projection, log, subgroup, settings, report)
-            finally:
-                os._exit(child)
-        if os.waitpid(pid, 0)[1] != 0:
+        if _forked(lambda: _grow(projection, log, subgroup, settings, report)) != 0:
             code = 1
     return code
 
@@ -162,11 +144,20 @@ def _fail(group: list[tuple[int, tuple[Job, Path]]], exc: Exception, report: Rep
     return 0
 
 
-def _die_with(parent: int) -> None:
-    """Make the calling (forked) process die when ``parent`` does."""
-    try:
-        ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (AttributeError, OSError):   # not Linux: the tree outlives a killed worker
-        return
-    if os.getppid() != parent:   # it died before prctl
-        os._exit(1)
+def _forked(work: Callable[[], int]) -> int:
+    """Run ``work`` in a forked child, which dies with this process and exits with what
+    ``work`` returns (1 if it raised); the child's wait status, once it has ended."""
+    parent = os.getpid()
+    pid = os.fork()
+    if pid == 0:
+        code = 1
+        try:
+            try:
+                ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+            except (AttributeError, OSError):   # not Linux: it outlives a killed parent
+                pass
+            if os.getppid() == parent:   # else the parent died before prctl
+                code = work()
+        finally:
+            os._exit(code)
+    return os.waitpid(pid, 0)[1]
