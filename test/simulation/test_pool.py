@@ -170,6 +170,22 @@ def test_dropping_an_owners_projections_spares_the_running_one(pool, make_scenar
     assert os.path.isdir(running.result(timeout=60.0).bag)   # finished, and kept
 
 
+def test_a_query_that_queued_a_grid_does_not_make_the_next_one_wait_for_all_of_it(
+        pool, make_scenario):
+    grid = pool.submit_all([job(make_scenario, f) for f in (4.1, 4.2, 4.3, 4.4)], 60.0,
+                           owner='q/grid')
+    deadline = time.monotonic() + 60.0
+    while not grid[0].running():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    single = pool.submit(job(make_scenario, 4.5), 60.0, owner='q/single')
+    single.result(timeout=120.0)
+    # One worker: the single one came right after the grid's first, before its last ones.
+    assert not grid[2].done() and not grid[3].done()
+    for future in grid:
+        assert os.path.isdir(future.result(timeout=120.0).bag)
+
+
 def test_a_worker_is_replaced_after_its_share_of_projections(make_scenario, tmp_path):
     from projection_server.workers.local import WorkerPool
 

@@ -18,7 +18,8 @@ The worker translates its projection into a timeline from the samples it has in 
 sends it back with the bag, so the parent never reads the bag it just had written. Bags go
 to a :class:`~projection_server.workers.bag_store.BagStore`.
 
-Queued projections of one family (a program whose parametrizations share their first steps,
+Workers take queued projections by owner (query) in turn: the next is the oldest of the
+owner that has had the fewest taken so far. Queued projections of one family (a program whose parametrizations share their first steps,
 from the same set-up, :mod:`projection_server.simulation.branching`) are taken together, up
 to a fair share of the queue per worker, and run as one tree: their shared steps once. A
 worker that dies or runs over time in a tree is replaced, and the tree's projections it had
@@ -77,6 +78,7 @@ class WorkerPool(BackendBase):
         self._context = multiprocessing.get_context(start_method)
         self._pending: deque[Request] = deque()
         self._ready = threading.Condition(self._lock)
+        self._served: dict[str | None, int] = {}   # projections taken, by owner
         self._slots = [_Slot(self, i) for i in range(workers)]
 
     @property
@@ -100,13 +102,32 @@ class WorkerPool(BackendBase):
 
     def _take(self) -> list[Request]:
         """The next queued request, with the queued ones of its family up to a fair share
-        per worker, all marked running; [] if none is left (with the lock)."""
+        per worker, all marked running; [] if none is left (with the lock).
+
+        The next is the oldest of the owner (query) that has had the fewest projections
+        taken so far: a query that queued a whole grid does not make the next query wait
+        for all of it.
+        """
+        self._pending = deque(r for r in self._pending if not r.future.done())
+        served = self._served
         while self._pending:
-            first = self._pending.popleft()
-            if not first.future.done() and first.future.set_running_or_notify_cancel():
+            first = min(self._pending, key=lambda r: min(served.get(o, 0) for o in r.owners))
+            self._pending.remove(first)
+            if first.future.set_running_or_notify_cancel():
                 break
         else:
             return []
+        taken = self._family(first)
+        for request in taken:
+            for owner in request.owners:
+                served[owner] = served.get(owner, 0) + 1
+        # Forget the owners with nothing queued or under way.
+        live = {o for r in (*self._pending, *taken) for o in r.owners} | {
+            o for slot in self._slots for r in slot.requests for o in r.owners}
+        self._served = {o: n for o, n in served.items() if o in live}
+        return taken
+
+    def _family(self, first: Request) -> list[Request]:
         if first.family is None:
             return [first]
         # A fair share of what is left to do, queued or under way in the other workers.
@@ -114,8 +135,6 @@ class WorkerPool(BackendBase):
         share = math.ceil((len(self._pending) + 1 + busy) / len(self._slots))
         taken, others = [first], deque()
         for request in self._pending:
-            if request.future.done():
-                continue
             if (len(taken) < share and request.family == first.family
                     and request.future.set_running_or_notify_cancel()):
                 taken.append(request)
