@@ -63,7 +63,8 @@ class Program:
     world and returns its :class:`Task`; ``rng`` is seeded from the projection's key.
 
     ``setup_params`` names the parameters that act when the world is set up; the others act
-    only through the task's commands. Parametrizations that agree in them step alike until
+    only through the task's commands (nor does such a program draw from ``rng``: it is
+    seeded from one projection's key). Parametrizations that agree in them step alike until
     their commands part, so they can share those steps
     (:mod:`projection_server.simulation.branching`). None (the default): the program does not
     say, and each parametrization runs from the start.
