@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.simulation.settings import Settings
 
-__all__ = ['Report', 'run_tree']
+__all__ = ['Report', 'run_tree', 'start_tree']
 
 # report(index, timeline or ProjectionError, ok): once per leaf, from the leaf's process.
 Report = Callable[[int, Any, bool], None]
@@ -55,7 +55,15 @@ def run_tree(client: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings
     Returns whether every process of the tree ended normally; if not (one crashed), the
     leaves it had not reported yet are not reported.
     """
-    return _forked(lambda: _root(client, list(enumerate(leaves)), settings, report)) == 0
+    return os.waitpid(start_tree(client, leaves, settings, report), 0)[1] == 0
+
+
+def start_tree(client: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
+               report: Report) -> int:
+    """:func:`run_tree` without waiting: the pid of the tree's root, which leads a process
+    group of the whole tree (to be paused and continued with ``os.killpg``); wait for it
+    with ``os.waitpid``."""
+    return _fork(lambda: _root(client, list(enumerate(leaves)), settings, report), True)
 
 
 class _SharedLog:
@@ -147,11 +155,19 @@ def _fail(group: list[tuple[int, tuple[Job, Path]]], exc: Exception, report: Rep
 def _forked(work: Callable[[], int]) -> int:
     """Run ``work`` in a forked child, which dies with this process and exits with what
     ``work`` returns (1 if it raised); the child's wait status, once it has ended."""
+    return os.waitpid(_fork(work), 0)[1]
+
+
+def _fork(work: Callable[[], int], group: bool = False) -> int:
+    """:func:`_forked` without waiting: the child's pid (with ``group``, the leader of a
+    new process group)."""
     parent = os.getpid()
     pid = os.fork()
     if pid == 0:
         code = 1
         try:
+            if group:
+                os.setpgid(0, 0)
             try:
                 ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
             except (AttributeError, OSError):   # not Linux: it outlives a killed parent
@@ -160,4 +176,4 @@ def _forked(work: Callable[[], int]) -> int:
                 code = work()
         finally:
             os._exit(code)
-    return os.waitpid(pid, 0)[1]
+    return pid

@@ -1,6 +1,7 @@
 """Projections that share their first steps, stepped once and forked where they part
 (:mod:`projection_server.simulation.branching`): the same bags and timelines as projections
-run one by one, through the pool's trees, their failures and their cancellation."""
+run one by one, through the pool's trees, paused for other queries, their failures and
+their cancellation."""
 
 from __future__ import annotations
 
@@ -115,6 +116,24 @@ def test_a_tree_whose_worker_dies_runs_what_it_had_not_finished_one_by_one(strai
     while any(os.path.exists(f'/proc/{pid}') for pid in tree):
         assert time.monotonic() < deadline, 'a process of the tree outlived its worker'
         time.sleep(0.05)
+
+
+def test_another_querys_projection_runs_while_the_tree_waits_and_changes_no_byte(
+        straight, tmp_path, make_scenario):
+    settings = load_settings()
+    grasp = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0, 'position': 0.0})
+    with WorkerPool(tmp_path, workers=1) as pool:
+        worker = _warm_worker(pool)
+        futures = pool.submit_all(jobs(), 60.0, owner='q/grid')
+        _descendants(worker, deadline=time.monotonic() + 30.0)
+        quick = pool.submit(grasp, 60.0, owner='q/quick')
+        assert os.path.isdir(quick.result(timeout=60.0).bag)
+        # One worker: the grasp did not wait for the whole tree.
+        assert not all(f.done() for f in futures)
+        results = [f.result(timeout=120.0) for f in futures]
+        assert pool.worker_pids == [worker]
+    for job, result in zip(jobs(), results):
+        assert (files(result.bag), without_bag(result.timeline)) == straight[job.key(settings)]
 
 
 def test_cancelling_a_trees_owner_stops_it_and_the_pool_serves_on(tmp_path):

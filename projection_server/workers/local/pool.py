@@ -35,6 +35,7 @@ import multiprocessing
 from multiprocessing.connection import wait
 import shutil
 import threading
+import time
 from typing import Any, NoReturn, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
@@ -56,6 +57,7 @@ if TYPE_CHECKING:
 __all__ = ['WorkerPool']
 
 _POLL = 1.0   # s between liveness checks while waiting for a result
+_OTHERS = 0.1   # s between looks for other queries' projections while a tree runs
 
 
 class WorkerPool(BackendBase):
@@ -126,6 +128,24 @@ class WorkerPool(BackendBase):
             o for slot in self._slots for r in slot.requests for o in r.owners}
         self._served = {o: n for o, n in served.items() if o in live}
         return taken
+
+    def _take_other(self, owners: set[str | None]) -> Request | None:
+        """For a worker that runs a tree of ``owners``' projections: the next queued one of
+        other owners, marked running, if every worker is busy; else None (with the lock)."""
+        if not all(slot.requests for slot in self._slots):
+            return None   # an idle worker takes it
+        served = self._served
+        others = [r for r in self._pending
+                  if not r.future.done() and not r.owners & owners]
+        while others:
+            request = min(others, key=lambda r: min(served.get(o, 0) for o in r.owners))
+            others.remove(request)
+            self._pending.remove(request)
+            if request.future.set_running_or_notify_cancel():
+                for owner in request.owners:
+                    served[owner] = served.get(owner, 0) + 1
+                return request
+        return None
 
     def _family(self, first: Request) -> list[Request]:
         if first.family is None:
@@ -261,6 +281,8 @@ class _Slot:
     def _run(self, request: Request) -> None:
         """Run ``request`` (already marked running) and settle its future."""
         pool = self._pool
+        if request.future.done():
+            return
         try:
             if pool._closed:
                 raise ProjectionError('pool_closed', 'the projection pool was closed')
@@ -286,40 +308,70 @@ class _Slot:
     def _run_tree(self, requests: list[Request]) -> list[Request]:
         """Run a family's ``requests`` as one tree and settle the futures of those it
         finishes; the others (its worker died or ran over time) are returned, to be run one
-        by one."""
+        by one. Meanwhile, when every worker is busy, another query's queued projection
+        runs in this worker, the tree paused."""
         pool, store = self._pool, self._pool.store
         left = dict(enumerate(requests))
+        owners = {o for r in requests for o in r.owners}
         what = f'a tree of {len(requests)} projections from {requests[0].key[:12]}'
         _log.debug('%s', what)
         tmp = store.tmp_dir()
         bags = [tmp / store.name(r.job, r.key) for r in requests]
+        other: tuple[Request, Any, float] | None = None   # request, bag, deadline
         try:
             self._ensure_worker()
             try:
                 self._conn.send(('tree', [(r.job, str(b)) for r, b in zip(requests, bags)]))
             except OSError:   # the worker died while idle
                 self._died(what)
+            # Each projection of a tree has its limit from the end of the one before.
+            deadline = time.monotonic() + max(r.timeout for r in requests)
             while True:
-                # Each projection of a tree has its limit from the end of the one before.
-                timeout = max((r.timeout for r in left.values()), default=pool.startup_timeout)
-                index, result, ok = self._receive(timeout, what)
-                if index is None:
-                    break
-                request = left.pop(index)
-                if not ok:
+                if other is None:
                     with pool._lock:
-                        pool._requests.fail(request, result)
-                    continue
-                try:
-                    final = store.publish(bags[index])
-                except Exception as exc:
+                        request = pool._take_other(owners)
+                    if request is not None:
+                        other = (request, tmp / store.name(request.job, request.key),
+                                 time.monotonic() + request.timeout)
+                        self.requests = [*self.requests, request]
+                        self._conn.send(('project', (request.job, str(other[1]))))
+                limit = other[2] if other is not None else deadline
+                ready = wait([self._conn, self._process.sentinel],
+                             timeout=max(0.0, min(limit - time.monotonic(), _OTHERS)))
+                if not ready:
+                    if time.monotonic() < limit:
+                        continue
+                    self._kill()
+                    if other is None:
+                        raise ProjectionError('timeout', f'{what} ran over time')
+                    request, other = other[0], None
+                    _log.warning('projection %s took longer than %g s', request.key[:12],
+                                 request.timeout)
                     with pool._lock:
                         pool._requests.fail(request, ProjectionError(
-                            'simulation_failed', f'{type(exc).__name__}: {exc}'))
+                            'timeout', f'projection {request.key[:12]} took longer than '
+                                       f'{request.timeout:g} s'))
+                    raise ProjectionError('worker_crashed', f'{what} was paused for it')
+                try:
+                    # A dying worker's pipe reads as EOF, so the pipe is checked first.
+                    message = self._conn.recv() if self._conn.poll() else None
+                except (EOFError, OSError):
+                    message = None
+                if message is None:
+                    self._died(what)
+                if len(message) == 2:   # the other query's projection
+                    request, bag, _ = other
+                    other = None
+                    self._settle(request, bag, *message)
+                    deadline = time.monotonic() + max(
+                        (r.timeout for r in left.values()), default=pool.startup_timeout)
                     continue
-                result['meta']['bag'] = str(final)
-                request.future.set_result(ProjectionResult(str(final), result))
-                self._projections += 1
+                index, result, ok = message
+                if index is None:
+                    break
+                self._settle(left.pop(index), bags[index], result, ok)
+                deadline = time.monotonic() + max(
+                    (r.timeout for r in left.values()), default=pool.startup_timeout)
         except ProjectionError as exc:
             if exc.kind in ('worker_crashed', 'timeout') and left:
                 _log.warning('%s; a new worker runs its %d unfinished projections one by one',
@@ -329,7 +381,26 @@ class _Slot:
             self._kill()
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
+        if other is not None:   # the worker died under it: it runs again, one by one
+            left[-1] = other[0]
         return list(left.values())
+
+    def _settle(self, request: Request, bag: Any, result: Any, ok: bool) -> None:
+        """Publish ``bag`` and give ``request`` its result, or fail it with ``result``."""
+        pool = self._pool
+        if ok:
+            try:
+                final = pool.store.publish(bag)
+            except Exception as exc:
+                result = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}')
+            else:
+                result['meta']['bag'] = str(final)
+                if not request.future.done():
+                    request.future.set_result(ProjectionResult(str(final), result))
+                self._projections += 1
+                return
+        with pool._lock:
+            pool._requests.fail(request, result)
 
     def _execute(self, request: Request) -> ProjectionResult:
         self._ensure_worker()

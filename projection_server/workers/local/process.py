@@ -8,7 +8,9 @@ message says how long that took. A ``project`` command is answered with
 has in memory (:mod:`projection_server.timeline.translate`). A ``tree`` command (projections
 that share their first steps, :mod:`projection_server.simulation.branching`) is answered
 with ``(index, result, ok)`` for each projection as it ends, then ``(None, complete, True)``,
-where ``complete`` is False if a process of the tree crashed before it reported.
+where ``complete`` is False if a process of the tree crashed before it reported. While a tree
+runs, the worker also takes ``project`` commands (another query's projection): it pauses
+the tree (SIGSTOP to its process group), answers ``(result, ok)`` and continues the tree.
 """
 
 from __future__ import annotations
@@ -54,28 +56,76 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
                 return
             if command == 'close':
                 return
-            try:
-                if command == 'tree':
-                    _tree(conn, simulator, payload, parsed)
-                    continue
-                job, path = payload
-                conn.send((simulator.run(job, parsed, Path(path)), True))
-            except ProjectionError as exc:
-                conn.send((exc, False))
-            except Exception as exc:
-                conn.send((ProjectionError(
-                    'simulation_failed',
-                    f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'), False))
+            if command == 'tree':
+                _tree(conn, simulator, payload, parsed)
+            else:
+                conn.send(_project(simulator, payload, parsed))
     finally:
         simulator.close()
 
 
+def _project(simulator: Any, payload: tuple[Any, str], settings: Any) -> tuple[Any, bool]:
+    try:
+        job, path = payload
+        return simulator.run(job, settings, Path(path)), True
+    except ProjectionError as exc:
+        return exc, False
+    except Exception as exc:
+        return ProjectionError('simulation_failed',
+                               f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'
+                               ), False
+
+
 def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: Any) -> None:
-    from projection_server.simulation.branching import run_tree
+    """Run a tree; answer each leaf as it ends and, meanwhile, ``project`` commands (of
+    other queries), for which the tree is paused."""
+    from multiprocessing.connection import wait
+    import pickle
+    import signal
+
+    from projection_server.simulation.branching import start_tree
+
+    leaves = [(job, Path(path)) for job, path in payload]
+    reader, writer = os.pipe()
+
+    def report(index: int, result: Any, ok: bool) -> None:   # in the leaf's process
+        done = leaves[index][1].with_name(leaves[index][1].name + '.result')
+        done.write_bytes(pickle.dumps((result, ok)))
+        os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 
     try:
-        complete = run_tree(simulator.client, [(job, Path(path)) for job, path in payload],
-                            settings, lambda index, result, ok: conn.send((index, result, ok)))
-    except Exception:   # e.g. fork failed: the pool runs what was not reported one by one
-        complete = False
-    conn.send((None, complete, True))
+        pid = start_tree(simulator.client, leaves, settings, report)
+    except Exception:   # e.g. fork failed: the pool runs the projections one by one
+        os.close(reader)
+        os.close(writer)
+        conn.send((None, False, True))
+        return
+    os.close(writer)   # the tree holds it: the pipe ends when the whole tree has
+    with os.fdopen(reader, 'rb', buffering=0) as ends:
+        pending = b''
+        while True:
+            ready = wait([conn, ends])
+            if conn in ready:
+                command, job = conn.recv()
+                if command != 'project':   # 'close': the tree goes with the worker
+                    os.killpg(pid, signal.SIGKILL)
+                    os.waitpid(pid, 0)
+                    raise SystemExit(0)
+                os.killpg(pid, signal.SIGSTOP)
+                try:
+                    conn.send(_project(simulator, job, settings))
+                finally:
+                    os.killpg(pid, signal.SIGCONT)
+            if ends in ready:
+                chunk = ends.read(4096)
+                if not chunk:
+                    break
+                pending += chunk
+                while len(pending) >= 4:
+                    index = int.from_bytes(pending[:4], 'little')
+                    pending = pending[4:]
+                    done = leaves[index][1].with_name(leaves[index][1].name + '.result')
+                    result, ok = pickle.loads(done.read_bytes())
+                    done.unlink()
+                    conn.send((index, result, ok))
+    conn.send((None, os.waitpid(pid, 0)[1] == 0, True))

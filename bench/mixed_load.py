@@ -1,0 +1,92 @@
+"""A short query while another client's long grid runs: how long the short one waits.
+
+Starts its own node (2 workers, a fresh bag directory) and, once its workers are warm, sends
+one client's Table II query (27 pours, all solutions) and, from a second client, a new egg
+grasp every ``--every`` seconds while the pours run, each a ONCE query of one projection.
+Prints the grasps' round trips during the grid against the same grasps on the idle node
+before it, and the grid's own time::
+
+    tools/with_env.sh python bench/mixed_load.py
+    tools/with_env.sh python bench/mixed_load.py --grasps 5 --every 12
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import platform
+import statistics
+import sys
+import tempfile
+import threading
+import time
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from projection_throughput import client, node, wait_warm  # noqa: E402
+
+GRID = ('make_projection(pouring, pour, [(P, position, [-0.09, 0.0, 0.07]), '
+        '(T, time, [0.0, 0.5, 1.0]), (A, angle, [1.84, 1.99, 2.14])], TL)')
+
+
+def grasp(force: float) -> str:
+    return (f'make_projection(grasping, grasp_object, [(_, force, [{force}]), '
+            '(_, position, [0.01])], TL)')
+
+
+def main() -> int:
+    import rclpy
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--grasps', type=int, default=5, help='grasps during the grid')
+    parser.add_argument('--every', type=float, default=12.0, help='s between them')
+    args = parser.parse_args()
+    rclpy.init()
+    with tempfile.TemporaryDirectory() as tmp:
+        with node(2, os.path.join(tmp, 'bags'), Path(tmp) / 'node.log') as server:
+            wait_warm(server.proc.pid, 2)
+            short, long_ = client(), client()
+            forces = iter(2.0 + i / 100 for i in range(2 * args.grasps + 2))
+            idle = []
+            for _ in range(args.grasps):
+                started = time.perf_counter()
+                assert short.once(grasp(next(forces)), timeout=600.0) is not None
+                idle.append(time.perf_counter() - started)
+            grid: dict[str, float] = {}
+
+            def run_grid() -> None:
+                started = time.perf_counter()
+                solutions = long_.all(GRID, timeout=600.0)
+                grid['seconds'] = time.perf_counter() - started
+                grid['solutions'] = len(solutions)
+
+            thread = threading.Thread(target=run_grid)
+            grid_start = time.perf_counter()
+            thread.start()
+            busy = []
+            for i in range(args.grasps):
+                time.sleep(max(0.0, grid_start + (i + 1) * args.every - time.perf_counter()))
+                started = time.perf_counter()
+                assert short.once(grasp(next(forces)), timeout=600.0) is not None
+                busy.append(time.perf_counter() - started)
+            thread.join()
+            short.close()
+            long_.close()
+    rclpy.shutdown()
+    print('mixed load benchmark: one-grasp ONCE queries from one client while another '
+          "client's Table II grid (27 pours, ALL_SOLUTIONS) runs, against the idle node")
+    print(f'  settings: 2 workers, fresh bag_dir, {args.grasps} grasps idle and {args.grasps} '
+          f'during the grid, one every {args.every:g} s from its start; python '
+          f'{platform.python_version()}, {os.cpu_count()} cores, load average '
+          f'{os.getloadavg()[0]:.1f} at the end')
+    print(f'  grasp on the idle node: median {statistics.median(idle):.2f} s '
+          f'({", ".join(f"{s:.2f}" for s in idle)})')
+    print(f'  grasp during the grid:  median {statistics.median(busy):.2f} s, max '
+          f'{max(busy):.2f} s ({", ".join(f"{s:.2f}" for s in busy)})')
+    print(f'  the grid: {grid["solutions"]} solutions in {grid["seconds"]:.1f} s')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
