@@ -326,7 +326,8 @@ class _Slot:
                 self._died(what)
             # Each projection of a tree has its limit from the end of the one before.
             deadline = time.monotonic() + max(r.timeout for r in requests)
-            while True:
+            ended = False   # the tree has; the other query's projection may still run
+            while not ended or other is not None:
                 if other is None:
                     with pool._lock:
                         request = pool._take_other(owners)
@@ -368,7 +369,8 @@ class _Slot:
                     continue
                 index, result, ok = message
                 if index is None:
-                    break
+                    ended = True
+                    continue
                 self._settle(left.pop(index), bags[index], result, ok)
                 deadline = time.monotonic() + max(
                     (r.timeout for r in left.values()), default=pool.startup_timeout)
