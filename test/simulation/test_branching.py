@@ -103,9 +103,7 @@ def test_a_tree_whose_worker_dies_runs_what_it_had_not_finished_one_by_one(strai
                                                                             tmp_path):
     settings = load_settings()
     with WorkerPool(tmp_path, workers=1) as pool:
-        worker = _warm_worker(pool)
-        futures = pool.submit_all(jobs(), 60.0)
-        tree = _descendants(worker, deadline=time.monotonic() + 30.0)
+        worker, futures, tree = _tree_under_way(pool)
         os.kill(worker, signal.SIGKILL)
         results = [f.result(timeout=120.0) for f in futures]
         assert pool.worker_pids != [worker]
@@ -123,9 +121,7 @@ def test_another_querys_projection_runs_while_the_tree_waits_and_changes_no_byte
     settings = load_settings()
     grasp = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0, 'position': 0.0})
     with WorkerPool(tmp_path, workers=1) as pool:
-        worker = _warm_worker(pool)
-        futures = pool.submit_all(jobs(), 60.0, owner='q/grid')
-        _descendants(worker, deadline=time.monotonic() + 30.0)
+        worker, futures, _ = _tree_under_way(pool, 'q/grid')
         quick = pool.submit(grasp, 60.0, owner='q/quick')
         assert os.path.isdir(quick.result(timeout=60.0).bag)
         # One worker: the grasp did not wait for the whole tree.
@@ -138,22 +134,15 @@ def test_another_querys_projection_runs_while_the_tree_waits_and_changes_no_byte
 
 def test_cancelling_a_trees_owner_stops_it_and_the_pool_serves_on(tmp_path):
     with WorkerPool(tmp_path, workers=1) as pool:
-        worker = _warm_worker(pool)
-        futures = pool.submit_all(jobs(), 60.0, owner='q/tree')
-        _descendants(worker, deadline=time.monotonic() + 30.0)
+        _, futures, _ = _tree_under_way(pool, 'q/tree')
         assert pool.cancel('q/tree') == 4
-        for future in futures:
-            with pytest.raises(ProjectionError) as info:
-                future.result(timeout=60.0)
-            assert info.value.kind == 'cancelled'
+        _all_fail(futures, 'cancelled')
         assert os.path.isdir(pool.run(jobs()[0], timeout=60.0))
 
 
 def test_dropping_a_trees_only_owner_stops_what_it_has_not_made(tmp_path):
     with WorkerPool(tmp_path, workers=1) as pool:
-        worker = _warm_worker(pool)
-        futures = pool.submit_all(jobs(), 60.0, owner='q/once')
-        _descendants(worker, deadline=time.monotonic() + 30.0)
+        _, futures, _ = _tree_under_way(pool, 'q/once')
         wanted = pool.submit(jobs()[3], 60.0, owner='q/other')
         # The tree goes on for the one another owner still wants.
         assert pool.cancel('q/once', running=False) == 3
@@ -165,11 +154,7 @@ def test_dropping_a_trees_only_owner_stops_what_it_has_not_made(tmp_path):
 
 def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(tmp_path):
     with WorkerPool(tmp_path, workers=1) as pool:
-        futures = pool.submit_all(jobs()[:2], 0.05)
-        for future in futures:
-            with pytest.raises(ProjectionError) as info:
-                future.result(timeout=120.0)
-            assert info.value.kind == 'timeout'
+        _all_fail(pool.submit_all(jobs()[:2], 0.05), 'timeout')
         assert os.path.isdir(pool.run(jobs()[0], timeout=60.0))
 
 
@@ -196,6 +181,21 @@ def test_the_prefetch_plan_queues_whole_families_and_depth_ahead_otherwise(monke
     monkeypatch.setitem(projection._config, 'backend', 'ray')
     assert projection.prefetch_plan('pour', pours, 2) == [[0, 1, 2], [3], [4], [5], [6], [7],
                                                           [], []]
+
+
+def _all_fail(futures, kind: str) -> None:
+    for future in futures:
+        with pytest.raises(ProjectionError) as info:
+            future.result(timeout=120.0)
+        assert info.value.kind == kind
+
+
+def _tree_under_way(pool: WorkerPool, owner: str | None = None):
+    """The family submitted to the pool's one worker once it is warm: the worker's pid, the
+    futures and the tree's processes, once they run."""
+    worker = _warm_worker(pool)
+    futures = pool.submit_all(jobs(), 60.0, owner=owner)
+    return worker, futures, _descendants(worker, deadline=time.monotonic() + 30.0)
 
 
 def _warm_worker(pool: WorkerPool) -> int:
