@@ -294,10 +294,14 @@ def test_memory_and_threads_come_back_after_a_burst(server, call):
 
     # The first burst grows the executor's thread pool and Prolog's caches to their size.
     before = burst()
+    burst()
     after = burst()
     # Executor threads (at most max_engines + 4) are kept; no thread per query is.
     assert after['threads'] <= max(before['threads'], 6 + 4 + 4), (before, after)
-    assert after['rss_kib'] - before['rss_kib'] < 30 * 1024, (before, after)
+    # A leak grows with every burst, while what the allocator has handed back at a burst's
+    # end varies by up to about 40 MB from one burst to the next: the growth is taken over
+    # two bursts, less than 30 MB for each.
+    assert after['rss_kib'] - before['rss_kib'] < 2 * 30 * 1024, (before, after)
 
 
 def test_finish_stops_a_running_projection_query_within_a_second(call, node):
