@@ -111,22 +111,15 @@ class WorkerPool(BackendBase):
         for all of it.
         """
         self._pending = deque(r for r in self._pending if not r.future.done())
-        served = self._served
-        while self._pending:
-            first = min(self._pending, key=lambda r: min(served.get(o, 0) for o in r.owners))
-            self._pending.remove(first)
-            if first.future.set_running_or_notify_cancel():
-                break
-        else:
+        first = self._next(list(self._pending))
+        if first is None:
             return []
         taken = self._family(first)
-        for request in taken:
-            for owner in request.owners:
-                served[owner] = served.get(owner, 0) + 1
+        self._count(taken)
         # Forget the owners with nothing queued or under way.
         live = {o for r in (*self._pending, *taken) for o in r.owners} | {
             o for slot in self._slots for r in slot.requests for o in r.owners}
-        self._served = {o: n for o, n in served.items() if o in live}
+        self._served = {o: n for o, n in self._served.items() if o in live}
         return taken
 
     def _take_other(self, owners: set[str | None]) -> Request | None:
@@ -134,18 +127,28 @@ class WorkerPool(BackendBase):
         other owners, marked running, if every worker is busy; else None (with the lock)."""
         if not all(slot.requests for slot in self._slots):
             return None   # an idle worker takes it
+        request = self._next([r for r in self._pending
+                              if not r.future.done() and not r.owners & owners])
+        if request is not None:
+            self._count([request])
+        return request
+
+    def _next(self, candidates: list[Request]) -> Request | None:
+        """Of the queued ``candidates``, the oldest of the owner that has had the fewest
+        taken, out of the queue and marked running; None if none can run."""
         served = self._served
-        others = [r for r in self._pending
-                  if not r.future.done() and not r.owners & owners]
-        while others:
-            request = min(others, key=lambda r: min(served.get(o, 0) for o in r.owners))
-            others.remove(request)
+        while candidates:
+            request = min(candidates, key=lambda r: min(served.get(o, 0) for o in r.owners))
+            candidates.remove(request)
             self._pending.remove(request)
             if request.future.set_running_or_notify_cancel():
-                for owner in request.owners:
-                    served[owner] = served.get(owner, 0) + 1
                 return request
         return None
+
+    def _count(self, taken: list[Request]) -> None:
+        for request in taken:
+            for owner in request.owners:
+                self._served[owner] = self._served.get(owner, 0) + 1
 
     def _family(self, first: Request) -> list[Request]:
         if first.family is None:
@@ -364,14 +367,12 @@ class _Slot:
                     request, bag, _ = other
                     other = None
                     self._settle(request, bag, *message)
-                    deadline = time.monotonic() + max(
-                        (r.timeout for r in left.values()), default=pool.startup_timeout)
-                    continue
-                index, result, ok = message
-                if index is None:
-                    ended = True
-                    continue
-                self._settle(left.pop(index), bags[index], result, ok)
+                else:
+                    index, result, ok = message
+                    if index is None:
+                        ended = True
+                        continue
+                    self._settle(left.pop(index), bags[index], result, ok)
                 deadline = time.monotonic() + max(
                     (r.timeout for r in left.values()), default=pool.startup_timeout)
         except ProjectionError as exc:

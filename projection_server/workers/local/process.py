@@ -88,9 +88,11 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
     leaves = [(job, Path(path)) for job, path in payload]
     reader, writer = os.pipe()
 
+    def ended(index: int) -> Path:   # where a leaf leaves its result
+        return leaves[index][1].with_name(leaves[index][1].name + '.result')
+
     def report(index: int, result: Any, ok: bool) -> None:   # in the leaf's process
-        done = leaves[index][1].with_name(leaves[index][1].name + '.result')
-        done.write_bytes(pickle.dumps((result, ok)))
+        ended(index).write_bytes(pickle.dumps((result, ok)))
         os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 
     try:
@@ -124,8 +126,7 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
                 while len(pending) >= 4:
                     index = int.from_bytes(pending[:4], 'little')
                     pending = pending[4:]
-                    done = leaves[index][1].with_name(leaves[index][1].name + '.result')
-                    result, ok = pickle.loads(done.read_bytes())
-                    done.unlink()
+                    result, ok = pickle.loads(ended(index).read_bytes())
+                    ended(index).unlink()
                     conn.send((index, result, ok))
     conn.send((None, os.waitpid(pid, 0)[1] == 0, True))
