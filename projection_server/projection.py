@@ -221,16 +221,14 @@ def prefetch_plan(program: str, params_list: list[dict[str, Any]],
     ``depth + 1`` families from ``i`` on, are queued, each family whole (the parametrizations
     that may share their first steps, :meth:`Job.family`; up to :data:`FAMILY_BATCH` at a
     time): a worker takes a family's projections together and steps what they share once.
-    A parametrization of a program that shares nothing (or of any program, with a backend
-    other than ``local``) is a family of its own, so its query keeps ``depth`` projections
-    queued ahead of the one it waits for.
+    A parametrization of a program that shares nothing is a family of its own, so its query
+    keeps ``depth`` projections queued ahead of the one it waits for.
     """
     try:
         shared = _programs.get(program)
     except ProjectionError:
         shared = None
-    # Only the local backend runs a family as a tree (forking in a Ray actor is not safe).
-    if shared is None or shared.setup_params is None or _config['backend'] != 'local':
+    if shared is None or shared.setup_params is None:
         count = len(params_list)
         return [list(range(min(count, depth + 1)))] * (count > 0) + [
             [i + depth] if i + depth < count else [] for i in range(1, count)]

@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.simulation.settings import Settings
 
-__all__ = ['Report', 'run_tree', 'start_tree']
+__all__ = ['Report', 'die_with_parent', 'run_tree', 'start_tree']
 
 # report(index, timeline or ProjectionError, ok): once per leaf, from the leaf's process.
 Report = Callable[[int, Any, bool], None]
@@ -168,12 +168,18 @@ def _fork(work: Callable[[], int], group: bool = False) -> int:
         try:
             if group:
                 os.setpgid(0, 0)
-            try:
-                ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
-            except (AttributeError, OSError):   # not Linux: it outlives a killed parent
-                pass
-            if os.getppid() == parent:   # else the parent died before prctl
+            if die_with_parent(parent):
                 code = work()
         finally:
             os._exit(code)
     return pid
+
+
+def die_with_parent(parent: int) -> bool:
+    """Have the calling process killed when its parent (the thread that started it) ends
+    (``PR_SET_PDEATHSIG``); False if the parent, pid ``parent``, has ended already."""
+    try:
+        ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (AttributeError, OSError):   # not Linux: it outlives a killed parent
+        pass
+    return os.getppid() == parent   # else the parent died before prctl

@@ -2,7 +2,7 @@
 and the timeline made from the samples in memory.
 
 A :class:`Simulator` keeps one DIRECT-mode PyBullet client for many projections (what a
-pool worker does, :mod:`projection_server.workers.local.process`); each projection still
+pool worker does, :mod:`projection_server.workers.process`); each projection still
 builds a fresh world in it and sets every engine parameter it depends on. The function
 :func:`run_projection` is one projection with a client of its own, e.g. from a debugger.
 """

@@ -9,6 +9,8 @@ A backend subclasses :class:`BackendBase` and says how a new request reaches its
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections import deque
+import math
 import threading
 from typing import Any, TYPE_CHECKING
 
@@ -18,7 +20,7 @@ from projection_server.workers.bag_store import BagStore
 from projection_server.workers.requests import check_timeout, Requests
 
 if TYPE_CHECKING:
-    from collections.abc import Mapping, Sequence
+    from collections.abc import Iterable, Mapping, Sequence
     from concurrent.futures import Future
     import os
 
@@ -117,6 +119,24 @@ class BackendBase(ABC):
         """Whether dropping an owner's projections (``cancel(owner, running=False)``) takes
         ``request``: if it is queued. Called with the lock."""
         return not request.future.running()
+
+    def _with_family(self, first: Request, queue: Iterable[Request], busy: int
+                     ) -> tuple[list[Request], deque[Request]]:
+        """``first`` (taken) and the queued requests of its family, up to a fair share per
+        worker of what is left to do (``queue``, and ``busy`` projections under way in the
+        other workers), marked running; and the rest of ``queue``. Called with the lock."""
+        if first.family is None:
+            return [first], deque(queue)
+        queue = list(queue)
+        share = math.ceil((len(queue) + 1 + busy) / self.workers)
+        taken, others = [first], deque()
+        for request in queue:
+            if (len(taken) < share and request.family == first.family
+                    and request.future.set_running_or_notify_cancel()):
+                taken.append(request)
+            else:
+                others.append(request)
+        return taken, others
 
     @abstractmethod
     def _stop(self, request: Request) -> bool:

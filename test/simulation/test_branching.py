@@ -159,7 +159,6 @@ def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(t
 
 
 def test_the_prefetch_plan_queues_whole_families_and_depth_ahead_otherwise(monkeypatch):
-    monkeypatch.setitem(projection._config, 'backend', 'local')
     grasps = [{'force': f, 'position': 0.0} for f in (1, 3, 5, 7, 9)]
     assert projection.prefetch_plan('grasp_object', grasps, 2) == [[0, 1, 2], [3], [4], [],
                                                                     []]
@@ -177,10 +176,10 @@ def test_the_prefetch_plan_queues_whole_families_and_depth_ahead_otherwise(monke
     plan = projection.prefetch_plan('pour', many, 1)
     assert [len(p) for p in plan if p] == [64, 6]   # batches of FAMILY_BATCH
     assert sorted(i for p in plan for i in p) == list(range(70))
-    # The ray backend runs each pour alone: the window of any other program.
+    # The ray backend runs families as trees too.
     monkeypatch.setitem(projection._config, 'backend', 'ray')
-    assert projection.prefetch_plan('pour', pours, 2) == [[0, 1, 2], [3], [4], [5], [6], [7],
-                                                          [], []]
+    assert projection.prefetch_plan('pour', pours, 2) == [[0, 1, 2, 3, 4, 5], [], [6, 7], [],
+                                                          [], [], [], []]
 
 
 def _all_fail(futures, kind: str) -> None:

@@ -1,5 +1,6 @@
 """The ray worker backend on a real local Ray instance: the bags and timelines of the local
-backend, crashes, time limits, cancellation; and that the local backend needs no Ray.
+backend, crashes, time limits, cancellation, of single projections and of trees of
+projections that share their first steps; and that the local backend needs no Ray.
 
 One Ray instance (started by the backend, as the node does with an empty ``ray_address``)
 and one actor serve the whole module. If Ray cannot start, the fixture fails with Ray's
@@ -8,6 +9,7 @@ reason.
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 import signal
@@ -16,6 +18,7 @@ import sys
 import time
 
 import pytest
+import yaml
 
 from projection_server.simulation import Job, ProjectionError
 from projection_server.workers import create_backend, WorkerBackend
@@ -124,6 +127,79 @@ def test_an_actor_is_replaced_by_a_fresh_one_after_max_projections(
     finally:
         ray_backend.max_projections = 200
     assert os.path.isdir(ray_backend.run(job(make_scenario, 3.75), timeout=60.0))
+
+
+# Pours that share their first steps, with a small batter (forty particles).
+SMALL = yaml.safe_load((Path(__file__).parent / 'pouring.yaml').read_text())
+SMALL['entities'][1]['parts'][0]['properties']['particle_count'] = 40
+
+
+def family(position):
+    return [Job.checked(SMALL, 'pour', {'angle': a, 'time': t, 'position': position})
+            for t in (0.2, 0.4) for a in (1.9, 2.1)]
+
+
+@pytest.fixture(scope='module')
+def straight(pool):
+    """The bags of two families made one by one by the local backend: files by bag name."""
+    return {Path(r.bag).name: files(r.bag) for r in (
+        pool.submit(job, timeout=60.0).result(60.0) for job in family(0.0) + family(0.02))}
+
+
+def files(bag):
+    return {f.name: f.read_bytes() for f in sorted(Path(bag).iterdir())}
+
+
+def test_a_family_runs_as_one_tree_in_an_actor_with_the_local_backends_bags(
+        ray_backend, straight, caplog):
+    caplog.set_level(logging.DEBUG, logger='projection_server.workers.ray.backend')
+    results = [f.result(timeout=120.0) for f in ray_backend.submit_all(family(0.0), 60.0)]
+    assert 'a tree of 4 projections' in caplog.text
+    for result in results:
+        assert files(result.bag) == straight[Path(result.bag).name]
+
+
+def test_a_tree_whose_actor_dies_runs_what_it_had_not_finished_one_by_one(
+        ray_backend, straight):
+    (info,) = ray_backend.placement()
+    futures = ray_backend.submit_all(family(0.02), 60.0)
+    futures[0].result(timeout=120.0)   # the tree is under way
+    assert not futures[-1].done()
+    os.kill(info['pid'], signal.SIGKILL)
+    for result in [f.result(timeout=120.0) for f in futures]:
+        assert files(result.bag) == straight[Path(result.bag).name]
+    assert actor_pid(ray_backend) != info['pid']
+    # The worker process (and so its tree) died with the actor.
+    deadline = time.monotonic() + 10.0
+    while os.path.exists(f'/proc/{info["worker_pid"]}'):
+        assert time.monotonic() < deadline, 'the worker process outlived its actor'
+        time.sleep(0.05)
+
+
+def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(ray_backend):
+    other = [Job.checked(SMALL, 'pour', {'angle': a, 'time': 0.3, 'position': 0.01})
+             for a in (1.8, 2.0)]
+    for future in ray_backend.submit_all(other, 0.05):
+        with pytest.raises(ProjectionError) as info:
+            future.result(timeout=120.0)
+        assert info.value.kind == 'timeout'
+
+
+def test_cancelling_a_trees_owner_stops_it(ray_backend):
+    pid = actor_pid(ray_backend)
+    other = [Job.checked(SMALL, 'pour', {'angle': a, 'time': 0.3, 'position': -0.01})
+             for a in (1.8, 2.0, 2.2)]
+    futures = ray_backend.submit_all(other, 60.0, owner='q/tree')
+    deadline = time.monotonic() + 30.0
+    while b'ProjectionActor.tree' not in Path(f'/proc/{pid}/cmdline').read_bytes():
+        assert time.monotonic() < deadline and not futures[0].done()
+        time.sleep(0.005)
+    assert ray_backend.cancel('q/tree') == 3
+    for future in futures:
+        with pytest.raises(ProjectionError) as info:
+            future.result(timeout=60.0)
+        assert info.value.kind == 'cancelled'
+    assert actor_pid(ray_backend) != pid
 
 
 def test_an_unknown_backend_is_an_invalid_setting(tmp_path):

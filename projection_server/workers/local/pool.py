@@ -3,7 +3,7 @@
 Modelled on Gymnasium's ``AsyncVectorEnv``: each worker is a process of an explicit
 multiprocessing context (``forkserver`` by default: the parent hosts rclpy and Prolog and
 must never be forked) that keeps one warm DIRECT-mode PyBullet client
-(:mod:`projection_server.workers.local.process`), and answers every command with
+(:mod:`projection_server.workers.process`), and answers every command with
 ``(result, ok)``; exceptions travel back as :class:`ProjectionError`. Every wait in the
 parent has a time limit. A worker that crashes or runs over its projection's time limit is
 terminated, its projection fails with kind ``worker_crashed`` or ``timeout``, and a new
@@ -30,7 +30,6 @@ from __future__ import annotations
 
 from collections import deque
 import logging
-import math
 import multiprocessing
 from multiprocessing.connection import wait
 import shutil
@@ -41,7 +40,7 @@ from typing import Any, NoReturn, TYPE_CHECKING
 from projection_server.simulation.errors import ProjectionError
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.base import BackendBase
-from projection_server.workers.local.process import worker_main
+from projection_server.workers.process import worker_main
 
 _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
@@ -151,19 +150,8 @@ class WorkerPool(BackendBase):
                 self._served[owner] = self._served.get(owner, 0) + 1
 
     def _family(self, first: Request) -> list[Request]:
-        if first.family is None:
-            return [first]
-        # A fair share of what is left to do, queued or under way in the other workers.
         busy = sum(not r.future.done() for slot in self._slots for r in slot.requests)
-        share = math.ceil((len(self._pending) + 1 + busy) / len(self._slots))
-        taken, others = [first], deque()
-        for request in self._pending:
-            if (len(taken) < share and request.family == first.family
-                    and request.future.set_running_or_notify_cancel()):
-                taken.append(request)
-            else:
-                others.append(request)
-        self._pending = others
+        taken, self._pending = self._with_family(first, self._pending, busy)
         return taken
 
     def run(self, job: Job, timeout: float) -> str:

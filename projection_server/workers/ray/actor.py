@@ -1,82 +1,131 @@
-"""The Ray actor of the ``ray`` backend: one warm simulator in a Ray worker process.
+"""The Ray actor of the ``ray`` backend: a warm simulator in a worker process of its own.
 
-ROS-free on purpose (no rclpy: it may run on any machine of a cluster). Like the ``local``
-worker process it pays imports, the PyBullet connection, message type registration and a
-throw-away projection (:mod:`projection_server.workers.warm_up`) once, runs each projection
-in a fresh world and makes its timeline from the samples in memory. The bag is written
-into a private temporary directory on the actor's machine (one left by an actor killed
-meanwhile is deleted by the next projection there) and sent back as bytes, so the node's
-bag directory needs no file system shared with the cluster. Every
-method answers ``(result, ok)``; a failed projection's result is its
-:class:`~projection_server.simulation.errors.ProjectionError`.
+ROS-free on purpose (no rclpy: it may run on any machine of a cluster). A Ray worker process
+has threads of its own, so it must not fork: the actor starts the worker process of the
+``local`` backend (:mod:`projection_server.workers.process`) as a command, once, and that
+process, single-threaded, runs the projections and forks the trees of projections that
+share their first steps. It pays imports, the PyBullet connection, message type
+registration and a throw-away projection (:mod:`projection_server.workers.warm_up`) once,
+runs each projection in a fresh world, makes its timeline from the samples in memory and
+dies with the actor. Bags are written into a private temporary directory on the actor's
+machine (one left by an actor killed meanwhile is deleted by the next projection there) and
+sent back as bytes, so the node's bag directory needs no file system shared with the
+cluster. Every answer carries ``ok``; a failed projection's result is its
+:class:`~projection_server.simulation.errors.ProjectionError`. If the worker process dies,
+so does the actor: Ray restarts it, and the backend reports the projection it was running
+as crashed.
 """
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import shutil
-import traceback
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.workers.bag_store import private_tmp_dir
 
 if TYPE_CHECKING:
+    from collections.abc import Iterator
+
     from projection_server.simulation.job import Job
 
 __all__ = ['ProjectionActor']
 
 
 class ProjectionActor:
-    """A warm PyBullet client that runs projections; made remote by the backend."""
+    """A warm PyBullet client in a worker process that runs projections and trees; made
+    remote by the backend."""
 
     def __init__(self, settings: dict[str, Any]):
-        # PyBullet's C code prints banners on stdout; errors travel back as results.
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, 1)
-        os.close(devnull)
+        import socket
+        import subprocess
+        import sys
+        from multiprocessing.connection import Connection
+
         self._error: ProjectionError | None = None
-        self._simulator: Any = None
         self._warm_up: dict[str, Any] | None = None
+        self._process: Any = None
         try:
             from projection_server.simulation.job import code_version
-            from projection_server.simulation.runner import Simulator
-            from projection_server.simulation.settings import Settings
 
-            self._settings = Settings.from_dict(settings)
             self._code = code_version()
-            self._simulator = Simulator()
+            ours, theirs = socket.socketpair()
+            # Exec, not fork: PyBullet's banners go to /dev/null, errors come back as results.
+            self._process = subprocess.Popen(
+                [sys.executable, '-m', 'projection_server.workers.process',
+                 str(theirs.fileno()), str(os.getpid())],
+                pass_fds=[theirs.fileno()], stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL)
+            theirs.close()
+            self._conn = Connection(ours.detach())
+            self._conn.send((settings, True))
+            message, ok = self._receive()
         except Exception as exc:   # reported by ready(), like a local worker's start-up
             self._error = ProjectionError('simulation_failed', f'worker start-up: {exc}')
+            return
+        if ok:
+            self._warm_up = message['warm_up']
         else:
-            from projection_server.workers.warm_up import warm_up
-
-            self._warm_up = warm_up(self._simulator, self._settings)
+            self._error = message
 
     def ready(self) -> tuple[Any, bool]:
-        """Where this actor runs and which code it has, or why it could not start."""
+        """Where this actor runs (its ``pid`` and its worker's ``worker_pid``) and which
+        code it has, or why it could not start."""
         if self._error is not None:
             return self._error, False
         import ray
 
-        return {'pid': os.getpid(), 'node': ray.get_runtime_context().get_node_id(),
+        return {'pid': os.getpid(), 'worker_pid': self._process.pid,
+                'node': ray.get_runtime_context().get_node_id(),
                 'code_version': self._code, 'warm_up': self._warm_up}, True
 
     def project(self, job: Job, name: str) -> tuple[Any, bool]:
-        """Run ``job`` into a bag called ``name``; ``({file: bytes}, timeline)`` of it."""
+        """Run ``job`` into a bag called ``name``: ``(({file: bytes}, timeline), True)``."""
         if self._error is not None:
             return self._error, False
         tmp = private_tmp_dir('projection-ray-')
         try:
             bag = tmp / name
-            timeline = self._simulator.run(job, self._settings, bag)
-            files = {entry.name: entry.read_bytes() for entry in sorted(bag.iterdir())}
-            return (files, timeline), True
-        except ProjectionError as exc:
-            return exc, False
-        except Exception as exc:
-            return ProjectionError(
-                'simulation_failed',
-                f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'), False
+            self._conn.send(('project', (job, str(bag))))
+            timeline, ok = self._receive()
+            return ((_files(bag), timeline) if ok else timeline), ok
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
+
+    def tree(self, leaves: list[tuple[Job, str]]) -> Iterator[tuple[Any, Any, bool]]:
+        """Run the projections ``leaves`` (a job and a bag name each; one family) as a tree
+        (:mod:`projection_server.simulation.branching`); yield ``(index, result, ok)`` for
+        each as it ends, as :meth:`project` answers, then ``(None, complete, True)``:
+        ``complete`` is False if a process of the tree crashed before it reported."""
+        if self._error is not None:
+            yield None, False, True   # the backend runs them one by one: each says why
+            return
+        tmp = private_tmp_dir('projection-ray-')
+        try:
+            bags = [tmp / name for _, name in leaves]
+            self._conn.send(('tree', [(job, str(bag)) for (job, _), bag in zip(leaves, bags)]))
+            while True:
+                index, result, ok = self._receive()
+                if index is None:
+                    yield None, result, True
+                    return
+                if ok:
+                    result = (_files(bags[index]), result)
+                    shutil.rmtree(bags[index], ignore_errors=True)
+                yield index, result, ok
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    def _receive(self) -> Any:
+        try:
+            return self._conn.recv()
+        except (EOFError, OSError):
+            # The worker process died (a crash of the simulation): the actor goes with it,
+            # and Ray restarts both.
+            os._exit(1)
+
+
+def _files(bag: Path) -> dict[str, bytes]:
+    return {entry.name: entry.read_bytes() for entry in sorted(bag.iterdir())}

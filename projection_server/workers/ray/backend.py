@@ -1,9 +1,11 @@
 """The ``ray`` backend: one Ray actor per worker, each with a warm simulator.
 
 For when one machine is not enough: the actors (:mod:`.actor`) may run on any node of a Ray
-cluster. One dispatcher thread hands each idle actor one job at a time and takes results as
-they finish with ``ray.wait``; the job's time limit counts from when its actor takes it, as
-in the ``local`` backend. Finished bags come back as bytes and are published into this
+cluster. One dispatcher thread hands each idle actor one job at a time, or, as the ``local``
+backend does, the queued jobs of one family up to a fair share per actor, run as a tree
+(:mod:`projection_server.simulation.branching`) whose projections come back one by one as
+they end; it takes results as they finish with ``ray.wait``. A job's time limit counts from
+when its actor takes it, in a tree from when the one before it ended. Finished bags come back as bytes and are published into this
 process's :class:`~projection_server.workers.bag_store.BagStore` under the same job key as
 the local backend uses, so either backend answers from the bags of the other.
 
@@ -14,7 +16,11 @@ Failures, chosen so that every projection is run at most once:
   by Ray, warm again, for the next job;
 * projections are sent with ``max_task_retries=0``: the one that was running fails with kind
   ``worker_crashed`` (or ``timeout``, ``cancelled``), never silently re-run; the readiness
-  call after a restart is the one call that waits through the restart.
+  call after a restart is the one call that waits through the restart;
+* a tree whose actor dies or runs over time is not failed as a whole: the projections it
+  had not finished run again one by one, each with its own time limit (and so its own
+  error), as in the ``local`` backend. A tree is stopped by a cancel once none of its
+  unfinished projections is wanted.
 
 PyBullet keeps a little memory per world it has built, so, as in the local backend, an
 actor is replaced by a fresh one after ``max_projections`` projections, while no job waits
@@ -25,6 +31,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+import logging
 import os
 from pathlib import Path
 import shutil
@@ -51,6 +58,8 @@ if TYPE_CHECKING:
 
 __all__ = ['RayBackend', 'connect']
 
+_log = logging.getLogger(__name__)  # the node forwards it to /rosout
+
 _POLL = 0.02         # s: ray.wait's slice while an idle actor could take a new job
 _POLL_BUSY = 0.5     # s: the same while every actor is busy (nothing new can start)
 LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB each
@@ -58,12 +67,15 @@ LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB e
 
 @dataclass
 class _Actor:
-    """One actor and what it does now: starting (``ref`` is its readiness call), idle, or
-    running ``request`` (``ref`` is the projection) until ``deadline``."""
+    """One actor and what it does now: starting (``ref`` is its readiness call), idle,
+    running ``request`` (``ref`` is the projection) or a tree of the requests ``tree`` (by
+    index; ``ref`` is its generator; those it has finished are removed) until
+    ``deadline``."""
 
     handle: Any
     ref: Any = None
     request: Request | None = None
+    tree: dict[int, Request] | None = None
     started: float = 0.0
     deadline: float = 0.0
     timed_out: bool = False
@@ -184,13 +196,26 @@ class RayBackend(BackendBase):
         """Run ``job`` (or find its bag) and return the bag's path."""
         return self.submit(job, timeout).result().bag
 
+    def _droppable(self, request: Request) -> bool:
+        # A tree makes its projections one after the other: those it has not made yet are
+        # dropped like queued ones (see _stop).
+        return not request.future.running() or any(
+            a.tree is not None and len(a.tree) > 1 and request in a.tree.values()
+            for a in self._actors)
+
     def _stop(self, request: Request) -> bool:
-        running = [a for a in self._actors if a.request is request]
-        for actor in running:
-            _kill(actor.handle, restart=True)   # Ray restarts it
-        if not running:
+        for actor in self._actors:
+            if actor.request is request:
+                _kill(actor.handle, restart=True)   # Ray restarts it
+                return True
+            if actor.tree is not None and request in actor.tree.values():
+                # A tree stops once none of its unfinished projections is wanted any more.
+                if all(r.cancelled for r in actor.tree.values() if not r.future.done()):
+                    _kill(actor.handle, restart=True)
+                return True
+        if request in self._queue:
             self._queue.remove(request)
-        return bool(running)
+        return False
 
     def close(self) -> None:
         """Kill the actors; unfinished projections fail with kind ``pool_closed``."""
@@ -228,13 +253,16 @@ class RayBackend(BackendBase):
                 done, _ = ray.wait(list(waiting), num_returns=1, timeout=limit,
                                    fetch_local=False)
                 for ref in done:
-                    self._finish(waiting[ref], ref)
+                    if waiting[ref].tree is not None:
+                        self._tree_message(waiting[ref], ref)
+                    else:
+                        self._finish(waiting[ref], ref)
                 self._check_deadlines()
         finally:
             with self._lock:
                 for actor in self._actors:
-                    if actor.request is not None:
-                        self._requests.fail(actor.request, ProjectionError(
+                    for request in _running(actor):
+                        self._requests.fail(request, ProjectionError(
                             'pool_closed', 'the projection backend was closed'))
 
     def _start_jobs(self) -> None:
@@ -245,18 +273,29 @@ class RayBackend(BackendBase):
             if not actor.idle:
                 continue
             request = self._queue.popleft()
-            if request.future.done() or not request.future.set_running_or_notify_cancel():
+            # (One put back from a tree that did not finish it is marked running already.)
+            if request.future.done() or not (request.future.running()
+                                             or request.future.set_running_or_notify_cancel()):
                 continue
             if actor.error is not None:   # its start-up failed: this job says why, then retry
                 self._requests.fail(request, actor.error)
                 self._replace(actor)
                 continue
-            actor.request = request
-            actor.ref = actor.handle.project.remote(
-                request.job, self.store.name(request.job, request.key))
+            busy = sum(len(_running(a)) for a in self._actors)
+            taken, self._queue = self._with_family(request, self._queue, busy)
             actor.started = time.monotonic()
-            actor.deadline = actor.started + request.timeout
             actor.timed_out = False
+            if len(taken) == 1:
+                actor.request = request
+                actor.ref = actor.handle.project.remote(
+                    request.job, self.store.name(request.job, request.key))
+                actor.deadline = actor.started + request.timeout
+            else:
+                _log.debug('a tree of %d projections from %s', len(taken), request.key[:12])
+                actor.tree = dict(enumerate(taken))
+                actor.ref = actor.handle.tree.options(num_returns='streaming').remote(
+                    [(r.job, self.store.name(r.job, r.key)) for r in taken])
+                actor.deadline = actor.started + max(r.timeout for r in taken)
 
     def _finish(self, actor: _Actor, ref: Any) -> None:
         request = actor.request
@@ -278,28 +317,94 @@ class RayBackend(BackendBase):
                         'same version on every machine of the cluster'), False
                 actor.info, actor.error = (value, None) if ok else (None, value)
             return
-        try:
-            result = self._publish(request, value) if ok else value
-        except Exception as exc:   # writing into the bag directory failed
-            result = ProjectionError('bag_error', f'{type(exc).__name__}: {exc}')
+        result = self._result(request, value, ok)
         with self._lock:
             actor.ref = actor.request = None
-            if isinstance(result, ProjectionResult):
-                if not request.future.done():
-                    request.future.set_result(result)
-            else:
-                self._requests.fail(request, result)
-            actor.projections += 1
+            self._settle(actor, request, result)
             if actor.projections >= self.max_projections and not self._closed:
                 self._replace(actor)
             self._wake.notify()
 
-    def _lost(self, actor: _Actor, exc: RayActorError) -> None:
-        """The actor died: fail its projection, wait for Ray to restart it."""
+    def _tree_message(self, actor: _Actor, generator: Any) -> None:
+        """The next message of the tree that ``actor`` runs: a projection's result, or its
+        end (after which the projections it did not finish are queued again, one by one)."""
+        try:
+            value = ray.get(next(generator), timeout=self.startup_timeout)
+        except StopIteration:   # ended without its last message
+            value = (None, False, True)
+        except RayActorError as exc:
+            self._lost(actor, exc)
+            return
+        except (GetTimeoutError, RayError) as exc:
+            _log.warning('a tree of projections failed: %s', _first_line(exc))
+            value = (None, False, True)
+        index, result, ok = value
+        if index is None:
+            with self._lock:
+                left, actor.tree, actor.ref = list(actor.tree.values()), None, None
+                self._again(left)
+                if actor.projections >= self.max_projections and not self._closed:
+                    self._replace(actor)
+                self._wake.notify()
+            return
+        request = actor.tree[index]
+        result = self._result(request, result, ok)
         with self._lock:
-            request = actor.request
-            actor.request = None
-            if request is not None:
+            if actor.tree is None or actor.tree.pop(index, None) is not request:
+                return   # the tree was lost meanwhile
+            self._settle(actor, request, result)
+            # Each projection of a tree has its limit from the end of the one before.
+            actor.deadline = time.monotonic() + max(
+                (r.timeout for r in actor.tree.values()), default=self.startup_timeout)
+
+    def _result(self, request: Request, value: Any, ok: bool
+                ) -> ProjectionResult | ProjectionError:
+        try:
+            return self._publish(request, value) if ok else value
+        except Exception as exc:   # writing into the bag directory failed
+            return ProjectionError('bag_error', f'{type(exc).__name__}: {exc}')
+
+    def _settle(self, actor: _Actor, request: Request,
+                result: ProjectionResult | ProjectionError) -> None:
+        """Give ``request`` its ``result`` (called with the lock)."""
+        if isinstance(result, ProjectionResult):
+            if not request.future.done():
+                request.future.set_result(result)
+        else:
+            self._requests.fail(request, result)
+        actor.projections += 1
+
+    def _again(self, requests: list[Request]) -> None:
+        """Queue a tree's unfinished ``requests`` again, first, each to run on its own
+        (called with the lock); the cancelled ones fail."""
+        if requests:
+            _log.warning('%d projections of a tree run again one by one', len(requests))
+        for request in reversed(requests):
+            if request.future.done():
+                continue
+            if request.cancelled:
+                self._requests.fail(request, ProjectionError(
+                    'cancelled', f'projection {request.key[:12]} was cancelled'))
+                continue
+            request.family = None
+            self._queue.appendleft(request)
+
+    def _lost(self, actor: _Actor, exc: RayActorError) -> None:
+        """The actor died: fail its projection (or queue its tree's unfinished ones again),
+        wait for Ray to restart it."""
+        with self._lock:
+            request, tree = actor.request, actor.tree
+            actor.request = actor.tree = None
+            if tree is not None:
+                if self._closed:
+                    for request in tree.values():
+                        self._requests.fail(request, ProjectionError(
+                            'pool_closed', 'the backend was closed during a tree'))
+                else:
+                    self._again(list(tree.values()))
+                    self._wake.notify()
+                request = None
+            elif request is not None:
                 what = f'projection {request.key[:12]}'
                 if self._closed:
                     error = ProjectionError('pool_closed', f'the backend was closed during {what}')
@@ -315,7 +420,8 @@ class RayBackend(BackendBase):
             if self._closed:
                 actor.ref = None
                 return
-            if request is None:   # died for good while starting: the next job says so
+            if request is None and tree is None:
+                # Died for good while starting: the next job says so.
                 actor.ref, actor.error = None, ProjectionError(
                     'worker_crashed', f'a Ray worker could not start: {_first_line(exc)}')
                 return
@@ -327,7 +433,7 @@ class RayBackend(BackendBase):
             for actor in self._actors:
                 if actor.ref is None:
                     continue
-                if actor.request is not None:
+                if actor.request is not None or actor.tree is not None:
                     if now >= actor.deadline and not actor.timed_out:
                         actor.timed_out = True
                         _kill(actor.handle, restart=True)
@@ -372,8 +478,15 @@ class RayBackend(BackendBase):
             _kill(actor.handle, restart=False)
         fresh = self._new_actor()
         actor.handle, actor.ref, actor.started = fresh.handle, fresh.ref, fresh.started
-        actor.info = actor.error = actor.request = None
+        actor.info = actor.error = actor.request = actor.tree = None
         actor.projections = 0
+
+
+def _running(actor: _Actor) -> list[Request]:
+    """The requests that ``actor`` runs."""
+    if actor.tree is not None:
+        return list(actor.tree.values())
+    return [actor.request] if actor.request is not None else []
 
 
 def _kill(handle: Any, restart: bool) -> None:

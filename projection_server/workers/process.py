@@ -1,4 +1,8 @@
-"""The worker process of the ``local`` backend: one warm simulator, commands over a pipe.
+"""The worker process of both backends: one warm simulator, commands over a pipe.
+
+The ``local`` backend starts it with multiprocessing (:func:`worker_main`); a Ray actor,
+whose process has threads of its own and so must not fork, starts it as a command
+(:func:`main`), and it forks the trees.
 
 Start-up pays once what every projection would otherwise pay again: imports, the PyBullet
 connection, message type registration and asset parsing, and a throw-away projection for
@@ -22,7 +26,7 @@ from typing import Any
 
 from projection_server.simulation.errors import ProjectionError
 
-__all__ = ['worker_main']
+__all__ = ['main', 'worker_main']
 
 
 def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
@@ -130,3 +134,27 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
                     ended(index).unlink()
                     conn.send((index, result, ok))
     conn.send((None, os.waitpid(pid, 0)[1] == 0, True))
+
+
+def main() -> None:
+    """``python -m projection_server.workers.process FD PARENT``: :func:`worker_main` on
+    the inherited socket ``FD``, whose first message is ``(settings, warm)``, in a process
+    that dies with its parent, pid ``PARENT``."""
+    import sys
+    from multiprocessing.connection import Connection
+
+    from projection_server.simulation.branching import die_with_parent
+
+    fd, parent = int(sys.argv[1]), int(sys.argv[2])
+    if not die_with_parent(parent):
+        return
+    conn = Connection(fd)
+    try:
+        settings, warm = conn.recv()
+    except (EOFError, OSError):
+        return
+    worker_main(conn, settings, warm)
+
+
+if __name__ == '__main__':
+    main()
