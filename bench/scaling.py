@@ -2,11 +2,12 @@
 overhead of Ray against local worker processes, and the speed-up from a second worker.
 
 Two batches: the paper's Table I (18 egg grasps: 6 forces x 3 positions) and a batch of
-pours (Table II's angles at hold 0.5 s, centred). The scenarios are the knowledge base's,
+pours (Table II's 9 pours at the centre: 3 angles x 3 holding times, one family that both
+backends run as a tree). The scenarios are the knowledge base's,
 taken from bags a node made (``simulate/5`` of ``grasping`` and ``pouring``). Each backend
 gets a fresh bag directory (nothing cached) and warm workers (one warm-up projection per
-worker, not timed); a batch is submitted at once and timed until its last projection is
-published. Local and ray runs alternate, so a loaded machine slows both alike; the local
+worker, not timed); a batch is submitted at once (``submit_all``, as a query's prefetch
+queues it) and timed until its last projection is published. Local and ray runs alternate, so a loaded machine slows both alike; the local
 backend is the floor Ray is measured against.
 
     tools/with_env.sh python bench/scaling.py --repeat 3
@@ -26,6 +27,7 @@ import time
 from projection_server.reproduce import paper
 
 POUR_ANGLES = paper.POUR_ANGLES
+POUR_TIMES = paper.POUR_TIMES
 BATCHES = ('table1', 'pours')
 
 
@@ -65,8 +67,8 @@ def batches(scenarios: dict[str, dict]) -> dict[str, list]:
     grasp = [Job.checked(scenarios['grasping'], 'grasp_object',
                          {'force': float(f), 'position': float(p)})
              for p in paper.GRASP_POSITIONS for f in paper.GRASP_FORCES]
-    pours = [Job.checked(scenarios['pouring'], 'pour', {'angle': float(a), 'time': 0.5})
-             for a in POUR_ANGLES]
+    pours = [Job.checked(scenarios['pouring'], 'pour', {'angle': float(a), 'time': float(t)})
+             for t in POUR_TIMES for a in POUR_ANGLES]
     return {'table1': grasp, 'pours': pours}
 
 
@@ -83,7 +85,7 @@ def warm_up(backend, scenarios: dict[str, dict]) -> None:
 
 def timed(backend, jobs: list) -> float:
     start = time.perf_counter()
-    futures = [backend.submit(job, 600.0) for job in jobs]
+    futures = backend.submit_all(jobs, 600.0)
     for future in futures:
         future.result(1200.0)
     return time.perf_counter() - start
@@ -150,7 +152,8 @@ def main() -> int:
           f'ray at {args.ray_address or "a one-node cluster started for the run"}')
     print(f'settings: {args.repeat} runs, fresh bag directory and warm workers per run; '
           f'Table I = {len(jobs["table1"])} grasps, pours = {len(jobs["pours"])} pours '
-          f'(angles {", ".join(str(a) for a in POUR_ANGLES)}, hold 0.5 s, centred)\n')
+          f'(angles {", ".join(str(a) for a in POUR_ANGLES)} x holds '
+          f'{", ".join(str(t) for t in POUR_TIMES)} s, centred)\n')
     print('| batch | workers | local median | ray median | ray overhead per projection '
           '| ray / local | speed-up local | speed-up ray |')
     print('|---|---|---|---|---|---|---|---|')

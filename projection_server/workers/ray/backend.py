@@ -5,11 +5,12 @@ cluster. One dispatcher thread hands each idle actor one job at a time, or, as t
 backend does, the queued jobs of one family up to a fair share per actor, run as a tree
 (:mod:`projection_server.simulation.branching`) whose projections come back one by one as
 they end; it takes results as they finish with ``ray.wait``. A job's time limit counts from
-when its actor takes it, in a tree from when the one before it ended. Finished bags come back as bytes and are published into this
-process's :class:`~projection_server.workers.bag_store.BagStore` under the same job key as
-the local backend uses, so either backend answers from the bags of the other.
+when its actor takes it, in a tree from when the one before it ended. Finished bags come
+back as bytes and are published into this process's
+:class:`~projection_server.workers.bag_store.BagStore` under the same job key as the local
+backend uses, so either backend answers from the bags of the other.
 
-Failures, chosen so that every projection is run at most once:
+Failures, chosen so that a projection that failed is reported, never silently run again:
 
 * actors are created with ``max_restarts=-1``: a dead actor process (a crash, a kill, a
   timeout or a cancel, which stop a running projection by killing its actor) is restarted
@@ -17,9 +18,9 @@ Failures, chosen so that every projection is run at most once:
 * projections are sent with ``max_task_retries=0``: the one that was running fails with kind
   ``worker_crashed`` (or ``timeout``, ``cancelled``), never silently re-run; the readiness
   call after a restart is the one call that waits through the restart;
-* a tree whose actor dies or runs over time is not failed as a whole: the projections it
-  had not finished run again one by one, each with its own time limit (and so its own
-  error), as in the ``local`` backend. A tree is stopped by a cancel once none of its
+* a tree whose actor dies or runs over time is not failed as a whole, since it is not known
+  which of its projections did it: those it had not finished run again one by one, each
+  with its own time limit (and so its own error), as in the ``local`` backend. A tree is stopped by a cancel once none of its
   unfinished projections is wanted.
 
 PyBullet keeps a little memory per world it has built, so, as in the local backend, an
@@ -199,7 +200,7 @@ class RayBackend(BackendBase):
     def _droppable(self, request: Request) -> bool:
         # A tree makes its projections one after the other: those it has not made yet are
         # dropped like queued ones (see _stop).
-        return not request.future.running() or any(
+        return request in self._queue or any(
             a.tree is not None and len(a.tree) > 1 and request in a.tree.values()
             for a in self._actors)
 
