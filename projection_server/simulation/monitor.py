@@ -120,13 +120,12 @@ class Monitor:
             messages.append(self._particles(t, sec, nanosec))
         contacts = self.contacts.take()
         values = [sec, nanosec]
-        for c in contacts:
-            values += (*c.position, *c.normal, c.normal_force, *c.friction)
-        pairs = tuple(_pair_of(c) for c in contacts)
-        template = _contacts_template(pairs)
+        for _, numbers in contacts:
+            values += numbers
+        template = _contacts_template(tuple(pair for pair, _ in contacts))
         messages.append((TOPICS['contacts'], template.msgtype, template.pack(values)))
-        records.append(Record('contacts', t, [(*pair, c.normal_force, float(c.normal[2]))
-                                              for pair, c in zip(pairs, contacts)]))
+        records.append(Record('contacts', t, [(*pair, numbers[6], float(numbers[5]))
+                                              for pair, numbers in contacts]))
         for gripper in physics.grippers.values():
             command = gripper.command
             layout = self._grippers.get((gripper, command))
@@ -452,39 +451,46 @@ class ContactAggregator:
         key = (*key_a, *key_b) if sign > 0 else (*key_b, *key_a)
         return key, sign, other < body
 
-    def take(self) -> list[ContactSample]:
+    def take(self) -> list[tuple[tuple[str, str, str, str], tuple[Any, ...]]]:
         """The aggregated contacts since the last call (and the fluids' of this step),
-        sorted by link pair; starts a new period."""
+        sorted by link pair; starts a new period. Each is ``(link pair, numbers)``, the
+        numbers of its message: position (3), normal (3), normal force, friction (3)."""
         steps = max(1, self._steps)
         out = []
-        array = np.array
+        sqrt = math.sqrt
         for key, row in self._sums.items():
             total = row[0]
             if total > 0:
-                position = (row[1] / total, row[2] / total, row[3] / total)
-                nx, ny, nz = row[4:7]
+                x, y, z = row[1] / total, row[2] / total, row[3] / total
+                nx, ny, nz = row[4], row[5], row[6]
             else:
-                position = (row[11] / row[10], row[12] / row[10], row[13] / row[10])
-                nx, ny, nz = row[14:17]
-            vector = array((nx, ny, nz))
-            norm = math.sqrt(vector.dot(vector))   # what np.linalg.norm computes
-            out.append(ContactSample(
-                *key, position=position,
-                normal=(nx / norm, ny / norm, nz / norm) if norm > 0 else (0.0, 0.0, 1.0),
-                normal_force=total / steps,
-                friction=(row[7] / steps, row[8] / steps, row[9] / steps)))
+                points = row[10]
+                x, y, z = row[11] / points, row[12] / points, row[13] / points
+                nx, ny, nz = row[14], row[15], row[16]
+            norm = sqrt(nx * nx + ny * ny + nz * nz)   # what np.linalg.norm gives, bit for bit
+            if norm > 0:
+                nx, ny, nz = nx / norm, ny / norm, nz / norm
+            else:
+                nx, ny, nz = 0.0, 0.0, 1.0
+            out.append((key, (x, y, z, nx, ny, nz, total / steps,
+                              row[7] / steps, row[8] / steps, row[9] / steps)))
         if self.physics.fluids:
             fluids = self.physics.fluids
-            out += [c for c in self.physics.contacts()
+            out += [(_pair_of(c), (*c.position, *c.normal, c.normal_force, *c.friction))
+                    for c in self.physics.contacts()
                     if c.body_a in fluids or c.body_b in fluids]
         self._sums = {}
         self._steps = 0
-        out.sort(key=_pair_of)
+        out.sort(key=_first)
         return out
 
 
 def _pair_of(contact: ContactSample) -> tuple[str, str, str, str]:
     return contact.body_a, contact.link_a, contact.body_b, contact.link_b
+
+
+def _first(item: tuple[Any, ...]) -> Any:
+    return item[0]
 
 
 def _link_frame(body: Body, link: int) -> str:
