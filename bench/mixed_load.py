@@ -8,6 +8,7 @@ before it, and the grid's own time::
 
     tools/with_env.sh python bench/mixed_load.py
     tools/with_env.sh python bench/mixed_load.py --grasps 5 --every 12
+    tools/with_env.sh python bench/mixed_load.py --backend ray   # a private Ray instance
 """
 
 from __future__ import annotations
@@ -41,13 +42,19 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--grasps', type=int, default=5, help='grasps during the grid')
     parser.add_argument('--every', type=float, default=12.0, help='s between them')
+    parser.add_argument('--backend', choices=('local', 'ray'), default='local')
     args = parser.parse_args()
     rclpy.init()
     with tempfile.TemporaryDirectory() as tmp:
-        with node(2, os.path.join(tmp, 'bags'), Path(tmp) / 'node.log') as server:
-            wait_warm(server.proc.pid, 2)
+        with node(2, os.path.join(tmp, 'bags'), Path(tmp) / 'node.log',
+                  projection_backend=args.backend) as server:
             short, long_ = client(), client()
-            forces = iter(2.0 + i / 100 for i in range(2 * args.grasps + 2))
+            forces = iter(2.0 + i / 100 for i in range(2 * args.grasps + 3))
+            if args.backend == 'ray':   # Ray and its actors start with the first projection
+                assert short.once(grasp(next(forces)), timeout=600.0) is not None
+                time.sleep(10.0)
+            else:
+                wait_warm(server.proc.pid, 2)
             idle = []
             for _ in range(args.grasps):
                 started = time.perf_counter()
@@ -76,7 +83,7 @@ def main() -> int:
     rclpy.shutdown()
     print('mixed load benchmark: one-grasp ONCE queries from one client while another '
           "client's Table II grid (27 pours, ALL_SOLUTIONS) runs, against the idle node")
-    print(f'  settings: 2 workers, fresh bag_dir, {args.grasps} grasps idle and {args.grasps} '
+    print(f'  settings: {args.backend} backend, 2 workers, fresh bag_dir, {args.grasps} grasps idle and {args.grasps} '
           f'during the grid, one every {args.every:g} s from its start; python '
           f'{platform.python_version()}, {os.cpu_count()} cores, load average '
           f'{os.getloadavg()[0]:.1f} at the end')

@@ -137,12 +137,12 @@ def parallel_pipeline(jobs, settings, workers: int) -> tuple[float, float]:
         return time.perf_counter() - start, sum(cpu for _, cpu in times)
 
 
-def node(workers: int, bag_dir: str, log: Path):
+def node(workers: int, bag_dir: str, log: Path, **params: object):
     from projection_server.launcher import node_command, NodeProcess
 
     return NodeProcess(node_command('/projection_server', {
         'projection_workers': workers, 'bag_dir': bag_dir, 'default_timeout': 600.0,
-        'max_solutions': 2000}), log)
+        'max_solutions': 2000, **params}), log)
 
 
 def client():

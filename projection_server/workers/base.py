@@ -49,6 +49,7 @@ class BackendBase(ABC):
         self.max_projections = max_projections
         self._lock = threading.Lock()
         self._requests = Requests(self.store)
+        self._served: dict[str | None, int] = {}   # projections taken, by owner
         self._closed = False
 
     def __enter__(self) -> BackendBase:
@@ -119,6 +120,32 @@ class BackendBase(ABC):
         """Whether dropping an owner's projections (``cancel(owner, running=False)``) takes
         ``request``: if it is queued. Called with the lock."""
         return not request.future.running()
+
+    def _next(self, candidates: list[Request], queue: deque[Request]) -> Request | None:
+        """Of the ``candidates`` queued in ``queue``, the oldest of the owner (query) that
+        has had the fewest projections taken so far, out of ``queue`` and marked running;
+        None if none can run. Called with the lock."""
+        served = self._served
+        while candidates:
+            request = min(candidates, key=lambda r: min(served.get(o, 0) for o in r.owners))
+            candidates.remove(request)
+            queue.remove(request)
+            # (One queued again after a tree left it unfinished is running already.)
+            if request.future.running() or request.future.set_running_or_notify_cancel():
+                return request
+        return None
+
+    def _count(self, taken: Iterable[Request]) -> None:
+        """Count ``taken`` as taken for their owners (called with the lock)."""
+        for request in taken:
+            for owner in request.owners:
+                self._served[owner] = self._served.get(owner, 0) + 1
+
+    def _forget_owners(self, live: Iterable[Request]) -> None:
+        """Forget the counts of owners with none of ``live`` (the requests queued or under
+        way) left; called with the lock."""
+        owners = {o for r in live for o in r.owners}
+        self._served = {o: n for o, n in self._served.items() if o in owners}
 
     def _with_family(self, first: Request, queue: Iterable[Request], busy: int
                      ) -> tuple[list[Request], deque[Request]]:

@@ -134,16 +134,20 @@ SMALL = yaml.safe_load((Path(__file__).parent / 'pouring.yaml').read_text())
 SMALL['entities'][1]['parts'][0]['properties']['particle_count'] = 40
 
 
-def family(position):
+def family(position, times=(0.2, 0.4)):
     return [Job.checked(SMALL, 'pour', {'angle': a, 'time': t, 'position': position})
-            for t in (0.2, 0.4) for a in (1.9, 2.1)]
+            for t in times for a in (1.9, 2.1)]
+
+
+LONGER = (0.2, 0.4, 0.6, 0.8)   # the holding times of a family of 8 pours
 
 
 @pytest.fixture(scope='module')
 def straight(pool):
-    """The bags of two families made one by one by the local backend: files by bag name."""
+    """The bags of three families made one by one by the local backend: files by bag name."""
     return {Path(r.bag).name: files(r.bag) for r in (
-        pool.submit(job, timeout=60.0).result(60.0) for job in family(0.0) + family(0.02))}
+        pool.submit(job, timeout=60.0).result(60.0)
+        for job in family(0.0) + family(0.02) + family(0.04, LONGER))}
 
 
 def files(bag):
@@ -174,6 +178,23 @@ def test_a_tree_whose_actor_dies_runs_what_it_had_not_finished_one_by_one(
     while os.path.exists(f'/proc/{info["worker_pid"]}'):
         assert time.monotonic() < deadline, 'the worker process outlived its actor'
         time.sleep(0.05)
+
+
+def test_another_querys_projection_runs_while_the_tree_waits_and_changes_no_byte(
+        ray_backend, straight, make_scenario):
+    pid = actor_pid(ray_backend)
+    futures = ray_backend.submit_all(family(0.04, LONGER), 60.0, owner='q/grid')
+    deadline = time.monotonic() + 30.0
+    while b'ProjectionActor.tree' not in Path(f'/proc/{pid}/cmdline').read_bytes():
+        assert time.monotonic() < deadline and not futures[0].done()
+        time.sleep(0.005)
+    quick = ray_backend.submit(job(make_scenario, 5.5), 60.0, owner='q/quick')
+    assert os.path.isdir(quick.result(timeout=60.0).bag)
+    # One actor: the grasp did not wait for the whole tree.
+    assert not all(f.done() for f in futures)
+    for result in [f.result(timeout=120.0) for f in futures]:
+        assert files(result.bag) == straight[Path(result.bag).name]
+    assert actor_pid(ray_backend) == pid
 
 
 def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(ray_backend):

@@ -79,7 +79,6 @@ class WorkerPool(BackendBase):
         self._context = multiprocessing.get_context(start_method)
         self._pending: deque[Request] = deque()
         self._ready = threading.Condition(self._lock)
-        self._served: dict[str | None, int] = {}   # projections taken, by owner
         self._slots = [_Slot(self, i) for i in range(workers)]
 
     @property
@@ -110,15 +109,13 @@ class WorkerPool(BackendBase):
         for all of it.
         """
         self._pending = deque(r for r in self._pending if not r.future.done())
-        first = self._next(list(self._pending))
+        first = self._next(list(self._pending), self._pending)
         if first is None:
             return []
         taken = self._family(first)
         self._count(taken)
-        # Forget the owners with nothing queued or under way.
-        live = {o for r in (*self._pending, *taken) for o in r.owners} | {
-            o for slot in self._slots for r in slot.requests for o in r.owners}
-        self._served = {o: n for o, n in self._served.items() if o in live}
+        self._forget_owners([*self._pending, *taken,
+                             *(r for slot in self._slots for r in slot.requests)])
         return taken
 
     def _take_other(self, owners: set[str | None]) -> Request | None:
@@ -127,27 +124,11 @@ class WorkerPool(BackendBase):
         if not all(slot.requests for slot in self._slots):
             return None   # an idle worker takes it
         request = self._next([r for r in self._pending
-                              if not r.future.done() and not r.owners & owners])
+                              if not r.future.done() and not r.owners & owners],
+                             self._pending)
         if request is not None:
             self._count([request])
         return request
-
-    def _next(self, candidates: list[Request]) -> Request | None:
-        """Of the queued ``candidates``, the oldest of the owner that has had the fewest
-        taken, out of the queue and marked running; None if none can run."""
-        served = self._served
-        while candidates:
-            request = min(candidates, key=lambda r: min(served.get(o, 0) for o in r.owners))
-            candidates.remove(request)
-            self._pending.remove(request)
-            if request.future.set_running_or_notify_cancel():
-                return request
-        return None
-
-    def _count(self, taken: list[Request]) -> None:
-        for request in taken:
-            for owner in request.owners:
-                self._served[owner] = self._served.get(owner, 0) + 1
 
     def _family(self, first: Request) -> list[Request]:
         busy = sum(not r.future.done() for slot in self._slots for r in slot.requests)

@@ -14,13 +14,19 @@ cluster. Every answer carries ``ok``; a failed projection's result is its
 :class:`~projection_server.simulation.errors.ProjectionError`. If the worker process dies,
 so does the actor: Ray restarts it, and the backend reports the projection it was running
 as crashed.
+
+While a tree runs, the actor (two threads: ``max_concurrency=2``) takes one ``project``
+call beside it, another query's projection: the worker process pauses the tree for it. The
+answers of both share the worker's pipe and are told apart by their length.
 """
 
 from __future__ import annotations
 
 import os
+from collections import deque
 from pathlib import Path
 import shutil
+import threading
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
@@ -47,6 +53,12 @@ class ProjectionActor:
         self._error: ProjectionError | None = None
         self._warm_up: dict[str, Any] | None = None
         self._process: Any = None
+        self._sending = threading.Lock()
+        self._answers = threading.Condition()
+        # Answers read but not yet taken, by length: (result, ok) of a projection,
+        # (index, result, ok) of a tree's.
+        self._inbox: dict[int, deque[tuple[Any, ...]]] = {2: deque(), 3: deque()}
+        self._reading = False
         try:
             from projection_server.simulation.job import code_version
 
@@ -61,7 +73,7 @@ class ProjectionActor:
             theirs.close()
             self._conn = Connection(ours.detach())
             self._conn.send((settings, True))
-            message, ok = self._receive()
+            message, ok = self._receive(2)
         except Exception as exc:   # reported by ready(), like a local worker's start-up
             self._error = ProjectionError('simulation_failed', f'worker start-up: {exc}')
             return
@@ -88,8 +100,8 @@ class ProjectionActor:
         tmp = private_tmp_dir('projection-ray-')
         try:
             bag = tmp / name
-            self._conn.send(('project', (job, str(bag))))
-            timeline, ok = self._receive()
+            self._send(('project', (job, str(bag))))
+            timeline, ok = self._receive(2)
             return ((_files(bag), timeline) if ok else timeline), ok
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
@@ -105,9 +117,9 @@ class ProjectionActor:
         tmp = private_tmp_dir('projection-ray-')
         try:
             bags = [tmp / name for _, name in leaves]
-            self._conn.send(('tree', [(job, str(bag)) for (job, _), bag in zip(leaves, bags)]))
+            self._send(('tree', [(job, str(bag)) for (job, _), bag in zip(leaves, bags)]))
             while True:
-                index, result, ok = self._receive()
+                index, result, ok = self._receive(3)
                 if index is None:
                     yield None, result, True
                     return
@@ -118,13 +130,31 @@ class ProjectionActor:
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
-    def _receive(self) -> Any:
-        try:
-            return self._conn.recv()
-        except (EOFError, OSError):
-            # The worker process died (a crash of the simulation): the actor goes with it,
-            # and Ray restarts both.
-            os._exit(1)
+    def _send(self, command: tuple[str, Any]) -> None:
+        with self._sending:
+            self._conn.send(command)
+
+    def _receive(self, size: int) -> tuple[Any, ...]:
+        """The next answer of length ``size`` from the worker process; one thread reads at
+        a time and leaves the other's answers in the inbox."""
+        inbox = self._inbox[size]
+        while True:
+            with self._answers:
+                while not inbox and self._reading:
+                    self._answers.wait()
+                if inbox:
+                    return inbox.popleft()
+                self._reading = True
+            try:
+                answer = self._conn.recv()
+            except (EOFError, OSError):
+                # The worker process died (a crash of the simulation): the actor goes with
+                # it, and Ray restarts both.
+                os._exit(1)
+            with self._answers:
+                self._reading = False
+                self._inbox[len(answer)].append(answer)
+                self._answers.notify_all()
 
 
 def _files(bag: Path) -> dict[str, bytes]:

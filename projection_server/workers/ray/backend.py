@@ -5,7 +5,9 @@ cluster. One dispatcher thread hands each idle actor one job at a time, or, as t
 backend does, the queued jobs of one family up to a fair share per actor, run as a tree
 (:mod:`projection_server.simulation.branching`) whose projections come back one by one as
 they end; it takes results as they finish with ``ray.wait``. A job's time limit counts from
-when its actor takes it, in a tree from when the one before it ended. Finished bags come
+when its actor takes it, in a tree from when the one before it ended. As in the ``local``
+backend, queued jobs are taken by owner (query) in turn, and while every actor is busy, an
+actor running a tree pauses it for another query's projection. Finished bags come
 back as bytes and are published into this process's
 :class:`~projection_server.workers.bag_store.BagStore` under the same job key as the local
 backend uses, so either backend answers from the bags of the other.
@@ -63,6 +65,7 @@ _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
 _POLL = 0.02         # s: ray.wait's slice while an idle actor could take a new job
 _POLL_BUSY = 0.5     # s: the same while every actor is busy (nothing new can start)
+_OTHERS = 0.1        # s: the same while a tree could be paused for another query's job
 LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB each
 
 
@@ -71,12 +74,16 @@ class _Actor:
     """One actor and what it does now: starting (``ref`` is its readiness call), idle,
     running ``request`` (``ref`` is the projection) or a tree of the requests ``tree`` (by
     index; ``ref`` is its generator; those it has finished are removed) until
-    ``deadline``."""
+    ``deadline``; and, while its tree waits, another query's projection ``other`` (its
+    call ``other_ref``) until ``other_deadline``."""
 
     handle: Any
     ref: Any = None
     request: Request | None = None
     tree: dict[int, Request] | None = None
+    other: Request | None = None
+    other_ref: Any = None
+    other_deadline: float = 0.0
     started: float = 0.0
     deadline: float = 0.0
     timed_out: bool = False
@@ -86,7 +93,7 @@ class _Actor:
 
     @property
     def idle(self) -> bool:
-        return self.ref is None
+        return self.ref is None and self.other is None
 
 
 def connect(address: str, workers: int) -> Callable[[], None] | None:
@@ -160,8 +167,10 @@ class RayBackend(BackendBase):
         self._code = code_version()
         self._stop_ray = connect(address, workers)
         # One CPU per actor: Ray places actors where cores are free, spread over the nodes.
+        # Two threads per actor: a tree, and another query's projection beside it.
         self._remote = ray.remote(ProjectionActor).options(
-            num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD')
+            num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD',
+            max_concurrency=2)
         self._wake = threading.Condition(self._lock)
         self._queue: deque[Request] = deque()
         self._actors = [self._new_actor() for _ in range(workers)]
@@ -206,6 +215,8 @@ class RayBackend(BackendBase):
 
     def _stop(self, request: Request) -> bool:
         for actor in self._actors:
+            if actor.other is request:
+                return True   # killing it would kill the tree it pauses: it finishes
             if actor.request is request:
                 _kill(actor.handle, restart=True)   # Ray restarts it
                 return True
@@ -242,19 +253,28 @@ class RayBackend(BackendBase):
                     if self._closed:
                         break
                     self._start_jobs()
+                    self._start_others()
                     waiting = {a.ref: a for a in self._actors if a.ref is not None}
-                    if not waiting:
+                    others = {a.other_ref: a for a in self._actors if a.other_ref is not None}
+                    if not waiting and not others:
                         self._wake.wait()
                         continue
-                    can_start = any(a.idle for a in self._actors)
-                    limit = _POLL if can_start else _POLL_BUSY
+                    if any(a.idle for a in self._actors):
+                        limit = _POLL
+                    elif any(a.tree is not None and a.other is None for a in self._actors):
+                        limit = _OTHERS
+                    else:
+                        limit = _POLL_BUSY
+                    ends = [a.other_deadline if a.other is not None else a.deadline
+                            for a in self._actors if _running(a)]
                 now = time.monotonic()
-                ends = [a.deadline for a in waiting.values() if a.request is not None]
                 limit = max(0.0, min([limit, *(end - now for end in ends)]))
-                done, _ = ray.wait(list(waiting), num_returns=1, timeout=limit,
+                done, _ = ray.wait([*waiting, *others], num_returns=1, timeout=limit,
                                    fetch_local=False)
                 for ref in done:
-                    if waiting[ref].tree is not None:
+                    if ref in others:
+                        self._finish_other(others[ref], ref)
+                    elif waiting[ref].tree is not None:
                         self._tree_message(waiting[ref], ref)
                     else:
                         self._finish(waiting[ref], ref)
@@ -267,23 +287,24 @@ class RayBackend(BackendBase):
                             'pool_closed', 'the projection backend was closed'))
 
     def _start_jobs(self) -> None:
-        """Give queued requests to idle actors (called with the lock)."""
+        """Give queued requests to idle actors, by owner in turn, a family's together
+        (called with the lock)."""
+        self._queue = deque(r for r in self._queue if not r.future.done())
         for actor in self._actors:
             if not self._queue:
-                return
+                break
             if not actor.idle:
                 continue
-            request = self._queue.popleft()
-            # (One put back from a tree that did not finish it is marked running already.)
-            if request.future.done() or not (request.future.running()
-                                             or request.future.set_running_or_notify_cancel()):
-                continue
+            request = self._next(list(self._queue), self._queue)
+            if request is None:
+                break
             if actor.error is not None:   # its start-up failed: this job says why, then retry
                 self._requests.fail(request, actor.error)
                 self._replace(actor)
                 continue
             busy = sum(len(_running(a)) for a in self._actors)
             taken, self._queue = self._with_family(request, self._queue, busy)
+            self._count(taken)
             actor.started = time.monotonic()
             actor.timed_out = False
             if len(taken) == 1:
@@ -297,6 +318,47 @@ class RayBackend(BackendBase):
                 actor.ref = actor.handle.tree.options(num_returns='streaming').remote(
                     [(r.job, self.store.name(r.job, r.key)) for r in taken])
                 actor.deadline = actor.started + max(r.timeout for r in taken)
+        self._forget_owners([*self._queue, *(r for a in self._actors for r in _running(a))])
+
+    def _start_others(self) -> None:
+        """While every actor is busy, have an actor whose tree runs pause it for another
+        query's queued projection (called with the lock)."""
+        if not self._queue or any(a.idle for a in self._actors):
+            return
+        for actor in self._actors:
+            if actor.tree is None or actor.other is not None:
+                continue
+            owners = {o for r in actor.tree.values() for o in r.owners}
+            request = self._next([r for r in self._queue if not r.owners & owners],
+                                 self._queue)
+            if request is None:
+                continue
+            self._count([request])
+            actor.other = request
+            actor.other_ref = actor.handle.project.remote(
+                request.job, self.store.name(request.job, request.key))
+            actor.other_deadline = time.monotonic() + request.timeout
+
+    def _finish_other(self, actor: _Actor, ref: Any) -> None:
+        """The projection that paused ``actor``'s tree has ended."""
+        request = actor.other
+        try:
+            value, ok = ray.get(ref, timeout=self.startup_timeout)
+        except RayActorError as exc:
+            self._lost(actor, exc)
+            return
+        except (GetTimeoutError, RayError) as exc:
+            value, ok = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}'), False
+        result = self._result(request, value, ok)
+        with self._lock:
+            if actor.other is not request:
+                return   # lost meanwhile
+            actor.other = actor.other_ref = None
+            self._settle(actor, request, result)
+            if actor.tree is not None:   # the tree's limit does not count the pause
+                actor.deadline = time.monotonic() + max(
+                    (r.timeout for r in actor.tree.values()), default=self.startup_timeout)
+            self._wake.notify()
 
     def _finish(self, actor: _Actor, ref: Any) -> None:
         request = actor.request
@@ -394,48 +456,52 @@ class RayBackend(BackendBase):
         """The actor died: fail its projection (or queue its tree's unfinished ones again),
         wait for Ray to restart it."""
         with self._lock:
-            request, tree = actor.request, actor.tree
-            actor.request = actor.tree = None
+            request, tree, other = actor.request, actor.tree, actor.other
+            actor.request = actor.tree = actor.other = actor.other_ref = None
+            if other is not None:
+                self._requests.fail(other, self._failure(
+                    other, exc, time.monotonic() >= actor.other_deadline))
+            if request is not None:
+                self._requests.fail(request, self._failure(request, exc, actor.timed_out))
             if tree is not None:
                 if self._closed:
                     for request in tree.values():
-                        self._requests.fail(request, ProjectionError(
-                            'pool_closed', 'the backend was closed during a tree'))
+                        self._requests.fail(request, self._failure(request, exc, False))
                 else:
                     self._again(list(tree.values()))
                     self._wake.notify()
-                request = None
-            elif request is not None:
-                what = f'projection {request.key[:12]}'
-                if self._closed:
-                    error = ProjectionError('pool_closed', f'the backend was closed during {what}')
-                elif request.cancelled:
-                    error = ProjectionError('cancelled', f'{what} was cancelled')
-                elif actor.timed_out:
-                    error = ProjectionError(
-                        'timeout', f'{what} took longer than {request.timeout:g} s')
-                else:
-                    error = ProjectionError(
-                        'worker_crashed', f'Ray worker died during {what}: {_first_line(exc)}')
-                self._requests.fail(request, error)
             if self._closed:
                 actor.ref = None
                 return
-            if request is None and tree is None:
+            if request is None and tree is None and other is None:
                 # Died for good while starting: the next job says so.
                 actor.ref, actor.error = None, ProjectionError(
                     'worker_crashed', f'a Ray worker could not start: {_first_line(exc)}')
                 return
             self._restarting(actor)
 
+    def _failure(self, request: Request, exc: RayActorError, timed_out: bool
+                 ) -> ProjectionError:
+        """Why ``request`` failed when its actor died of ``exc``."""
+        what = f'projection {request.key[:12]}'
+        if self._closed:
+            return ProjectionError('pool_closed', f'the backend was closed during {what}')
+        if request.cancelled:
+            return ProjectionError('cancelled', f'{what} was cancelled')
+        if timed_out:
+            return ProjectionError('timeout', f'{what} took longer than {request.timeout:g} s')
+        return ProjectionError('worker_crashed',
+                               f'Ray worker died during {what}: {_first_line(exc)}')
+
     def _check_deadlines(self) -> None:
         now = time.monotonic()
         with self._lock:
             for actor in self._actors:
-                if actor.ref is None:
+                if actor.ref is None and actor.other is None:
                     continue
-                if actor.request is not None or actor.tree is not None:
-                    if now >= actor.deadline and not actor.timed_out:
+                if _running(actor):
+                    end = actor.other_deadline if actor.other is not None else actor.deadline
+                    if now >= end and not actor.timed_out:
                         actor.timed_out = True
                         _kill(actor.handle, restart=True)
                 elif now - actor.started > self.startup_timeout and self._queue:
@@ -480,14 +546,15 @@ class RayBackend(BackendBase):
         fresh = self._new_actor()
         actor.handle, actor.ref, actor.started = fresh.handle, fresh.ref, fresh.started
         actor.info = actor.error = actor.request = actor.tree = None
+        actor.other = actor.other_ref = None
         actor.projections = 0
 
 
 def _running(actor: _Actor) -> list[Request]:
     """The requests that ``actor`` runs."""
-    if actor.tree is not None:
-        return list(actor.tree.values())
-    return [actor.request] if actor.request is not None else []
+    running = list(actor.tree.values()) if actor.tree is not None else (
+        [actor.request] if actor.request is not None else [])
+    return running + [actor.other] if actor.other is not None else running
 
 
 def _kill(handle: Any, restart: bool) -> None:
