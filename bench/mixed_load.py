@@ -83,10 +83,10 @@ def main() -> int:
     rclpy.shutdown()
     print('mixed load benchmark: one-grasp ONCE queries from one client while another '
           "client's Table II grid (27 pours, ALL_SOLUTIONS) runs, against the idle node")
-    print(f'  settings: {args.backend} backend, 2 workers, fresh bag_dir, {args.grasps} grasps idle and {args.grasps} '
-          f'during the grid, one every {args.every:g} s from its start; python '
-          f'{platform.python_version()}, {os.cpu_count()} cores, load average '
-          f'{os.getloadavg()[0]:.1f} at the end')
+    print(f'  settings: {args.backend} backend, 2 workers, fresh bag_dir, {args.grasps} '
+          f'grasps idle and {args.grasps} during the grid, one every {args.every:g} s from '
+          f'its start; python {platform.python_version()}, {os.cpu_count()} cores, load '
+          f'average {os.getloadavg()[0]:.1f} at the end')
     print(f'  grasp on the idle node: median {statistics.median(idle):.2f} s '
           f'({", ".join(f"{s:.2f}" for s in idle)})')
     print(f'  grasp during the grid:  median {statistics.median(busy):.2f} s, max '

@@ -7,8 +7,9 @@ backends run as a tree). The scenarios are the knowledge base's,
 taken from bags a node made (``simulate/5`` of ``grasping`` and ``pouring``). Each backend
 gets a fresh bag directory (nothing cached) and warm workers (one warm-up projection per
 worker, not timed); a batch is submitted at once (``submit_all``, as a query's prefetch
-queues it) and timed until its last projection is published. Local and ray runs alternate, so a loaded machine slows both alike; the local
-backend is the floor Ray is measured against.
+queues it) and timed until its last projection is published. Local and ray runs alternate,
+so a loaded machine slows both alike; the local backend is the floor Ray is measured
+against.
 
     tools/with_env.sh python bench/scaling.py --repeat 3
     tools/with_env.sh python bench/scaling.py --ray-address auto   # an existing cluster

@@ -19,9 +19,10 @@ sends it back with the bag, so the parent never reads the bag it just had writte
 to a :class:`~projection_server.workers.bag_store.BagStore`.
 
 Workers take queued projections by owner (query) in turn: the next is the oldest of the
-owner that has had the fewest taken so far. Queued projections of one family (a program whose parametrizations share their first steps,
-from the same set-up, :mod:`projection_server.simulation.branching`) are taken together, up
-to a fair share of the queue per worker, and run as one tree: their shared steps once. A
+owner that has had the fewest taken so far. Queued projections of one family (a program
+whose parametrizations share their first steps, from the same set-up,
+:mod:`projection_server.simulation.branching`) are taken together, up to a fair share of the
+queue per worker, and run as one tree: their shared steps once. A
 worker that dies or runs over time in a tree is replaced, and the tree's projections it had
 not finished run again one by one, each with its own time limit.
 """

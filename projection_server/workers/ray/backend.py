@@ -22,8 +22,8 @@ Failures, chosen so that a projection that failed is reported, never silently ru
   call after a restart is the one call that waits through the restart;
 * a tree whose actor dies or runs over time is not failed as a whole, since it is not known
   which of its projections did it: those it had not finished run again one by one, each
-  with its own time limit (and so its own error), as in the ``local`` backend. A tree is stopped by a cancel once none of its
-  unfinished projections is wanted.
+  with its own time limit (and so its own error), as in the ``local`` backend. A tree is
+  stopped by a cancel once none of its unfinished projections is wanted.
 
 PyBullet keeps a little memory per world it has built, so, as in the local backend, an
 actor is replaced by a fresh one after ``max_projections`` projections, while no job waits
@@ -339,36 +339,37 @@ class RayBackend(BackendBase):
                 request.job, self.store.name(request.job, request.key))
             actor.other_deadline = time.monotonic() + request.timeout
 
+    def _answer(self, actor: _Actor, ref: Any) -> tuple[Any, bool] | None:
+        """``(result, ok)`` of ``actor``'s call ``ref``; None if the actor died (handled)."""
+        try:
+            return ray.get(ref, timeout=self.startup_timeout)
+        except RayActorError as exc:
+            self._lost(actor, exc)
+            return None
+        except (GetTimeoutError, RayError) as exc:
+            return ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}'), False
+
     def _finish_other(self, actor: _Actor, ref: Any) -> None:
         """The projection that paused ``actor``'s tree has ended."""
         request = actor.other
-        try:
-            value, ok = ray.get(ref, timeout=self.startup_timeout)
-        except RayActorError as exc:
-            self._lost(actor, exc)
+        answer = self._answer(actor, ref)
+        if answer is None:
             return
-        except (GetTimeoutError, RayError) as exc:
-            value, ok = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}'), False
-        result = self._result(request, value, ok)
+        result = self._result(request, *answer)
         with self._lock:
             if actor.other is not request:
                 return   # lost meanwhile
             actor.other = actor.other_ref = None
             self._settle(actor, request, result)
-            if actor.tree is not None:   # the tree's limit does not count the pause
-                actor.deadline = time.monotonic() + max(
-                    (r.timeout for r in actor.tree.values()), default=self.startup_timeout)
+            _tree_deadline(actor, self.startup_timeout)   # the pause does not count
             self._wake.notify()
 
     def _finish(self, actor: _Actor, ref: Any) -> None:
         request = actor.request
-        try:
-            value, ok = ray.get(ref, timeout=self.startup_timeout)
-        except RayActorError as exc:
-            self._lost(actor, exc)
+        answer = self._answer(actor, ref)
+        if answer is None:
             return
-        except (GetTimeoutError, RayError) as exc:
-            value, ok = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}'), False
+        value, ok = answer
         if request is None:   # the actor's readiness call
             with self._lock:
                 actor.ref = None
@@ -417,8 +418,7 @@ class RayBackend(BackendBase):
                 return   # the tree was lost meanwhile
             self._settle(actor, request, result)
             # Each projection of a tree has its limit from the end of the one before.
-            actor.deadline = time.monotonic() + max(
-                (r.timeout for r in actor.tree.values()), default=self.startup_timeout)
+            _tree_deadline(actor, self.startup_timeout)
 
     def _result(self, request: Request, value: Any, ok: bool
                 ) -> ProjectionResult | ProjectionError:
@@ -548,6 +548,14 @@ class RayBackend(BackendBase):
         actor.info = actor.error = actor.request = actor.tree = None
         actor.other = actor.other_ref = None
         actor.projections = 0
+
+
+def _tree_deadline(actor: _Actor, default: float) -> None:
+    """Restart the time limit of ``actor``'s tree, if it runs one: the longest limit of
+    the projections it has left (``default`` if none)."""
+    if actor.tree is not None:
+        actor.deadline = time.monotonic() + max(
+            (r.timeout for r in actor.tree.values()), default=default)
 
 
 def _running(actor: _Actor) -> list[Request]:
