@@ -13,8 +13,15 @@ Runs the same projections twice in one process, alternating:
   once the batter is at rest); nothing else (no object model computations, no
   monitoring, no bag).
 
+The floor is also stepped with just the engine queries the log needs and nothing done with
+their answers (each step the contact points of every moving body, each monitoring sample
+the poses of the moving bodies and particles, their links' states, the grippers' joints and
+the contact points of every body): what no implementation of the monitor in this process
+can avoid.
+
 Prints the medians per program, the split of the pipeline into its parts (and of its time
-beyond the floor: object models, monitoring and log, translation, Prolog), and the ratio
+beyond the floor: object models, monitoring and log, of which the engine queries,
+translation, Prolog), and the ratio
 pipeline / floor, of wall time and of the CPU time of this process (on a machine shared
 with other work, CPU time is the steadier measure of what the pipeline itself costs).
 Scenarios come from the knowledge base (``grasping``, ``pouring``).
@@ -83,10 +90,12 @@ def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
             'translate': made['translate'], 'prolog': prolog, 'cpu': cpu}
 
 
-def floor(client, job, settings, models: bool = False) -> tuple[float, float]:
+def floor(client, job, settings, models: bool = False,
+          queries: bool = False) -> tuple[float, float]:
     """Bare stepping of the job's world and program (its per-step commands and its end
     included): (wall, CPU seconds of this process); with ``models``, each step also runs
-    the object models (the egg's shell), still without monitoring or bag."""
+    the object models (the egg's shell), still without monitoring or bag; with
+    ``queries``, the engine queries of the log are made (see the module's doc)."""
     from projection_server.simulation.programs import get as get_program
     from projection_server.simulation.scenario import parse_scenario
     from projection_server.simulation.world import build_world
@@ -105,6 +114,14 @@ def floor(client, job, settings, models: bool = False) -> tuple[float, float]:
     # are the program: the floor runs them too. No monitor exists here, so these are all.
     hooks = list(physics.step_hooks)
     finished = getattr(task, 'finished', None)
+    solid = [b for b in physics.bodies.values() if b.group is None]
+    moving = [b.body_id for b in solid if not b.static]
+    others = [body for body in moving if body not in modelled]
+    named = [b.body_id for b in solid]
+    linked = [(b.body_id, sorted(b.links)) for b in solid if not b.static and b.links]
+    grippers = list(physics.grippers.values())
+    particles = [i for fluid in physics.fluids.values() for i in fluid.body_ids]
+    base_pose, link_states = client.getBasePositionAndOrientation, client.getLinkStates
     for step in range(steps):
         if step % control == 0:
             task.control(physics)
@@ -117,6 +134,18 @@ def floor(client, job, settings, models: bool = False) -> tuple[float, float]:
                 contact_points(bodyA=body)
             for hook in hooks:
                 hook()
+            if queries:
+                for body in others:
+                    contact_points(bodyA=body)
+                if physics.step_count % log == 0:
+                    for body in moving + particles:
+                        base_pose(body)
+                    for body, links in linked:
+                        link_states(body, links, computeForwardKinematics=True)
+                    for gripper in grippers:
+                        gripper.state()
+                    for body in named:
+                        contact_points(bodyA=body)
         if finished is not None and physics.step_count % log == 0 and finished(physics):
             break
     return time.perf_counter() - start, time.process_time() - cpu
@@ -189,8 +218,10 @@ def main() -> int:
                     row = results.setdefault(program, {})
                     for name, value in parts.items():
                         row.setdefault(name, []).append(value)
-                    for name, models in (('floor', False), ('models', True)):
-                        wall, cpu = floor(bare, job, settings, models)
+                    for name, models, queries in (('floor', False, False),
+                                                  ('models', True, False),
+                                                  ('queries', False, True)):
+                        wall, cpu = floor(bare, job, settings, models, queries)
                         row.setdefault(name, []).append(wall)
                         row.setdefault(f'{name} cpu', []).append(cpu)
     simulator.close()
@@ -213,7 +244,8 @@ def main() -> int:
               f'{med["simulate+log"] * 1e3:.1f}, translate {med["translate"] * 1e3:.1f}, '
               f'prolog {med["prolog"] * 1e3:.1f}), floor {med["floor"] * 1e3:7.1f} ms, '
               f'ratio {ratio:.2f}x (median of {len(row["total"])} pairs); stepping with the '
-              f'object models {med["models"] * 1e3:.1f} ms; CPU time of this process: '
+              f'object models {med["models"] * 1e3:.1f} ms, with the log\'s engine queries '
+              f'{med["queries"] * 1e3:.1f} ms; CPU time of this process: '
               f'pipeline {med["cpu"] * 1e3:.1f} ms, floor {med["floor cpu"] * 1e3:.1f} ms, '
               f'with the object models {med["models cpu"] * 1e3:.1f} ms, ratio '
               f'{cpu_ratio:.2f}x')
@@ -222,9 +254,13 @@ def main() -> int:
         # log (simulate+log - stepping with the models), the timeline, Prolog.
         models = statistics.median(m - f for m, f in zip(row['models'], row['floor']))
         monitor = statistics.median(s - m for s, m in zip(row['simulate+log'], row['models']))
+        asked = statistics.median(q - f for q, f in zip(row['queries'], row['floor']))
         print(f'    beyond the floor: object models {models * 1e3:+.1f} ms, monitoring and '
-              f'log {monitor * 1e3:+.1f} ms, translate {med["translate"] * 1e3:+.1f} ms, '
+              f'log {monitor * 1e3:+.1f} ms (of which the engine queries '
+              f'{asked * 1e3:+.1f} ms), translate {med["translate"] * 1e3:+.1f} ms, '
               f'prolog {med["prolog"] * 1e3:+.1f} ms')
+        print(f'    floor with the engine queries of the log: ratio '
+              f'{statistics.median(q / f for q, f in zip(row["queries"], row["floor"])):.2f}x')
     return 0
 
 
