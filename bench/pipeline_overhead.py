@@ -186,6 +186,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeat', type=int, default=3, help='rounds over all projections')
     parser.add_argument('--pours', type=int, default=len(POURS), help='pours per round (0-1)')
+    parser.add_argument('--steps-per-log', type=int, default=None,
+                        help="physics steps per monitoring sample (default: config's)")
     args = parser.parse_args()
 
     import pybullet
@@ -194,10 +196,14 @@ def main() -> int:
     from projection_server.simulation.job import Job
     from projection_server.simulation.physics import bound_client
     from projection_server.simulation.runner import Simulator
-    from projection_server.simulation.settings import load_settings
+    from projection_server.simulation.settings import load_settings, Settings
 
     prolog_bridge.load()
     settings = load_settings()
+    if args.steps_per_log is not None:   # a thinner (or denser) log, for what it would save
+        data = settings.to_dict()
+        data['control']['steps_per_log'] = args.steps_per_log
+        settings = Settings.from_dict(data)
     jobs = {'grasp_object': [Job.checked(scenario('grasping'), 'grasp_object', p)
                              for p in GRASPS],
             'pour': [Job.checked(scenario('pouring'), 'pour', p)
@@ -230,7 +236,8 @@ def main() -> int:
     print('pipeline overhead benchmark: full projection pipeline vs bare Bullet stepping')
     print(f'  settings: {len(jobs["grasp_object"])} grasps ({", ".join(map(str, GRASPS[:2]))}'
           f', ...) and {len(jobs["pour"])} pour(s) {POURS[:args.pours]}, each run '
-          f'{args.repeat}x both ways, alternating, in one process; physics from '
+          f'{args.repeat}x both ways, alternating, in one process; a sample every '
+          f'{settings.control.steps_per_log} steps; physics from '
           f'config/physics.yaml; '
           f'python {platform.python_version()}, {os.cpu_count()} cores, '
           f'load average {os.getloadavg()[0]:.1f}')
