@@ -22,8 +22,8 @@ answers of both share the worker's pipe and are told apart by their length.
 
 from __future__ import annotations
 
-import os
 from collections import deque
+import os
 from pathlib import Path
 import shutil
 import threading
