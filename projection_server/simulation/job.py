@@ -52,6 +52,10 @@ def code_version() -> str:
     return f'{version}+{digest.hexdigest()[:16]}'
 
 
+# The canonical JSON of the scenarios parse_scenario accepted last (oldest first).
+_VALID_SCENARIOS: dict[str, None] = {}
+
+
 @dataclass(frozen=True, eq=False)
 class Job:
     """One projection: a scenario description, a program name, its parameter values and the
@@ -70,11 +74,22 @@ class Job:
     @classmethod
     def checked(cls, scenario: Any, program: str, params: Any, physics: Any = None) -> Job:
         """Validate and normalize (raises ProjectionError with the matching kind)."""
-        parse_scenario(scenario)
+        # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
+        text = canonical_json(scenario)
+        if text not in _VALID_SCENARIOS:   # a query's projections share their scenario
+            parse_scenario(scenario)
+            if len(_VALID_SCENARIOS) >= 64:
+                del _VALID_SCENARIOS[next(iter(_VALID_SCENARIOS))]
+            _VALID_SCENARIOS[text] = None
         values = get_program(program).check(params if params is not None else {})
         chosen = check_physics(physics if physics is not None else {})
-        # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
-        return cls(json.loads(canonical_json(scenario)), program, values, chosen)
+        job = cls(json.loads(text), program, values, chosen)
+        object.__setattr__(job, '_scenario_json', text)   # what the keys are made of
+        return job
+
+    @functools.cached_property
+    def _scenario_json(self) -> str:
+        return canonical_json(self.scenario)
 
     def settings(self, settings: Settings) -> Settings:
         """The settings this projection runs with, given those of the settings file."""
@@ -87,16 +102,26 @@ class Job:
         setup = get_program(self.program).setup(self.params)
         if setup is None:
             return None
-        text = canonical_json({'scenario': self.scenario, 'program': self.program,
-                               'setup': setup, 'settings': self.settings(settings).to_dict()})
+        text = _assembled({'scenario': self._scenario_json,
+                           'program': canonical_json(self.program),
+                           'setup': canonical_json(setup),
+                           'settings': settings.projection_json(self.program, self.physics)})
         return hashlib.sha256(text.encode()).hexdigest()
 
     def key(self, settings: Settings) -> str:
         """Content hash of job, its settings and the code version: the cache key and the
         bag's name. Physics chosen by the query count as what they amount to, so choosing
         the program's own settings finds the same bag."""
-        text = canonical_json({'scenario': self.scenario, 'program': self.program,
-                               'params': self.params,
-                               'settings': self.settings(settings).to_dict(),
-                               'code': code_version()})
+        text = _assembled({'scenario': self._scenario_json,
+                           'program': canonical_json(self.program),
+                           'params': canonical_json(self.params),
+                           'settings': settings.projection_json(self.program, self.physics),
+                           'code': canonical_json(code_version())})
         return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _assembled(parts: dict[str, str]) -> str:
+    """:func:`canonical_json` of a dict from the canonical JSON of its values: the same text
+    (the scenario's and the settings' are made once, not for every key)."""
+    return '{' + ','.join(f'{json.dumps(name)}:{text}'
+                          for name, text in sorted(parts.items())) + '}'

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
+import functools
+import json
 import math
 import os
 from pathlib import Path
@@ -170,6 +172,23 @@ class Settings:
             steps_per_control=self.control.steps_per_control * rate // base.rate_hz,
             steps_per_log=self.control.steps_per_log * rate // base.rate_hz)
         return Settings(replace(base, **values), control, self.timeline)
+
+    def projection_json(self, program: str,
+                        physics: Mapping[str, Any] | None = None) -> str:
+        """Canonical JSON of :meth:`for_projection`'s ``to_dict()``, kept per program and
+        physics: a part of every projection's key."""
+        wanted = (program, tuple(sorted((physics or {}).items())))
+        text = self._projection_json.get(wanted)
+        if text is None:
+            text = json.dumps(self.for_projection(program, physics).to_dict(), sort_keys=True,
+                              separators=(',', ':'), allow_nan=False)
+            if len(self._projection_json) < 256:
+                self._projection_json[wanted] = text
+        return text
+
+    @functools.cached_property
+    def _projection_json(self) -> dict[tuple[Any, ...], str]:
+        return {}
 
     def describe_physics(self, program: str | None = None) -> list[dict[str, Any]]:
         """The :data:`PHYSICS_OPTIONS` with their ranges and defaults (``program``'s)."""

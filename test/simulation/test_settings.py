@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import pytest
 
 from projection_server.simulation import Job, load_settings, ProjectionError, Settings
+from projection_server.simulation.job import canonical_json, code_version
 from projection_server.simulation.settings import PHYSICS_OPTIONS
 
 
@@ -69,6 +72,22 @@ def test_the_cache_key_is_that_of_the_settings_the_projection_runs_with(settings
     explicit = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0},
                            {'rate_hz': settings.physics.rate_hz})
     assert finer.key(settings) != plain.key(settings) == explicit.key(settings)
+
+
+@pytest.mark.parametrize('physics', [None, {'rate_hz': 960, 'solver_iterations': 40}])
+def test_the_cache_key_hashes_the_canonical_json_of_job_settings_and_code(
+        settings, make_scenario, physics):
+    # The key is made of parts kept per job and per settings: it is still the hash of the
+    # canonical JSON of the whole, and a job made without checked() has the same key.
+    job = Job.checked(make_scenario(), 'pour' if physics else 'grasp_object',
+                      {'force': 5.0} if physics is None else {'angle': 2.0}, physics)
+    whole = canonical_json({'scenario': job.scenario, 'program': job.program,
+                            'params': job.params, 'settings': job.settings(settings).to_dict(),
+                            'code': code_version()})
+    assert job.key(settings) == hashlib.sha256(whole.encode()).hexdigest()
+    assert Job(job.scenario, job.program, job.params, job.physics).key(settings) == job.key(
+        settings)
+    assert job.key(settings) == job.key(settings)   # from the kept parts
 
 
 def test_every_option_is_a_field_of_the_physics_with_a_default_in_its_range(settings):
