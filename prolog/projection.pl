@@ -131,7 +131,9 @@ simulate(Scenario, Program, Params, Options, Log) :-
     projection_options(Program, Options, Timeout, Physics),
     maplist(parse_param(Program, Formal), Params, Choices),
     check_unique(Choices),
-    scenario_description(Scenario, Description),
+    scenario_description(Scenario, Description0),
+    % Made a Python dict once: every projection and prefetch of the query passes it on.
+    py_call(dict(Description0), Description, [py_object(true)]),
     findall(Values, ( instantiate(Choices, Pairs),
                       dict_pairs(Values, params, Pairs) ), All),
     py_call('projection_server.projection':workers(), Depth),
