@@ -73,8 +73,13 @@ class ProjectionActor:
             theirs.close()
             self._conn = Connection(ours.detach())
             self._conn.send((settings, True))
-            message, ok = self._receive(2)
+            message, ok = self._receive(2, exit_on_eof=False)
         except Exception as exc:   # reported by ready(), like a local worker's start-up
+            if isinstance(exc, (EOFError, OSError)) and self._process is not None:
+                try:
+                    exc = f'the worker process exited with code {self._process.wait(5.0)}'
+                except subprocess.TimeoutExpired:
+                    pass
             self._error = ProjectionError('simulation_failed', f'worker start-up: {exc}')
             return
         if ok:
@@ -134,9 +139,10 @@ class ProjectionActor:
         with self._sending:
             self._conn.send(command)
 
-    def _receive(self, size: int) -> tuple[Any, ...]:
+    def _receive(self, size: int, exit_on_eof: bool = True) -> tuple[Any, ...]:
         """The next answer of length ``size`` from the worker process; one thread reads at
-        a time and leaves the other's answers in the inbox."""
+        a time and leaves the other's answers in the inbox. If the worker process has died,
+        the actor exits (EOFError instead without ``exit_on_eof``)."""
         inbox = self._inbox[size]
         while True:
             with self._answers:
@@ -148,6 +154,8 @@ class ProjectionActor:
             try:
                 answer = self._conn.recv()
             except (EOFError, OSError):
+                if not exit_on_eof:
+                    raise EOFError from None
                 # The worker process died (a crash of the simulation): the actor goes with
                 # it, and Ray restarts both.
                 os._exit(1)
