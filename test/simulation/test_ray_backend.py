@@ -223,6 +223,16 @@ def test_cancelling_a_trees_owner_stops_it(ray_backend):
     assert actor_pid(ray_backend) != pid
 
 
+def test_an_actor_whose_worker_process_cannot_start_says_why(monkeypatch):
+    from projection_server.simulation import load_settings
+    from projection_server.workers.ray.actor import ProjectionActor
+
+    monkeypatch.setattr(sys, 'executable', '/bin/false')   # the actor's class, without Ray
+    error, ok = ProjectionActor(load_settings().to_dict()).ready()
+    assert not ok and error.kind == 'simulation_failed'
+    assert 'worker start-up: the worker process exited with code 1' in error.message
+
+
 def test_an_unknown_backend_is_an_invalid_setting(tmp_path):
     with pytest.raises(ProjectionError) as info:
         create_backend('spark', tmp_path, 1)
