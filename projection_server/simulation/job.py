@@ -7,6 +7,7 @@ import functools
 import hashlib
 import json
 from pathlib import Path
+import threading
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation.errors import ProjectionError
@@ -54,6 +55,7 @@ def code_version() -> str:
 
 # The canonical JSON of the scenarios parse_scenario accepted last (oldest first).
 _VALID_SCENARIOS: dict[str, None] = {}
+_VALID_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,11 +78,12 @@ class Job:
         """Validate and normalize (raises ProjectionError with the matching kind)."""
         # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
         text = canonical_json(scenario)
-        if text not in _VALID_SCENARIOS:   # a query's projections share their scenario
-            parse_scenario(scenario)
-            if len(_VALID_SCENARIOS) >= 64:
-                del _VALID_SCENARIOS[next(iter(_VALID_SCENARIOS))]
-            _VALID_SCENARIOS[text] = None
+        with _VALID_LOCK:   # queries check their jobs from threads of their own
+            if text not in _VALID_SCENARIOS:   # a query's projections share their scenario
+                parse_scenario(scenario)
+                if len(_VALID_SCENARIOS) >= 64:
+                    del _VALID_SCENARIOS[next(iter(_VALID_SCENARIOS))]
+                _VALID_SCENARIOS[text] = None
         values = get_program(program).check(params if params is not None else {})
         chosen = check_physics(physics if physics is not None else {})
         job = cls(json.loads(text), program, values, chosen)

@@ -290,6 +290,7 @@ class RayBackend(BackendBase):
         """Give queued requests to idle actors, by owner in turn, a family's together
         (called with the lock)."""
         self._queue = deque(r for r in self._queue if not r.future.done())
+        started = False
         for actor in self._actors:
             if not self._queue:
                 break
@@ -305,6 +306,7 @@ class RayBackend(BackendBase):
             busy = sum(len(_running(a)) for a in self._actors)
             taken, self._queue = self._with_family(request, self._queue, busy)
             self._count(taken)
+            started = True
             actor.started = time.monotonic()
             actor.timed_out = False
             if len(taken) == 1:
@@ -318,7 +320,8 @@ class RayBackend(BackendBase):
                 actor.ref = actor.handle.tree.options(num_returns='streaming').remote(
                     [(r.job, self.store.name(r.job, r.key)) for r in taken])
                 actor.deadline = actor.started + max(r.timeout for r in taken)
-        self._forget_owners([*self._queue, *(r for a in self._actors for r in _running(a))])
+        if started:
+            self._forget_owners([*self._queue, *(r for a in self._actors for r in _running(a))])
 
     def _start_others(self) -> None:
         """While every actor is busy, have an actor whose tree runs pause it for another
