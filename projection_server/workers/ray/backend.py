@@ -261,7 +261,7 @@ class RayBackend(BackendBase):
                         continue
                     if any(a.idle for a in self._actors):
                         limit = _POLL
-                    elif any(a.tree is not None and a.other is None for a in self._actors):
+                    elif any(_pausable(a) is not None for a in self._actors):
                         limit = _OTHERS
                     else:
                         limit = _POLL_BUSY
@@ -329,9 +329,9 @@ class RayBackend(BackendBase):
         if not self._queue or any(a.idle for a in self._actors):
             return
         for actor in self._actors:
-            if actor.tree is None or actor.other is not None:
+            owners = _pausable(actor)
+            if owners is None:
                 continue
-            owners = {o for r in actor.tree.values() for o in r.owners}
             request = self._next([r for r in self._queue if not r.owners & owners],
                                  self._queue)
             if request is None:
@@ -559,6 +559,17 @@ def _tree_deadline(actor: _Actor, default: float) -> None:
     if actor.tree is not None:
         actor.deadline = time.monotonic() + max(
             (r.timeout for r in actor.tree.values()), default=default)
+
+
+def _pausable(actor: _Actor) -> set[str] | None:
+    """The owners of the projections that ``actor``'s tree has not finished, if it could
+    pause the tree for another query's projection; None if it runs none or runs one
+    beside it already. A tree whose projections have all ended but whose end has not come
+    yet has none to pause for: a projection started beside it would only keep the actor
+    from its next tree (and split the next family into single projections)."""
+    if not actor.tree or actor.other is not None:
+        return None
+    return {o for r in actor.tree.values() for o in r.owners}
 
 
 def _running(actor: _Actor) -> list[Request]:
