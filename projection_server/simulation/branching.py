@@ -172,6 +172,13 @@ def _fork(work: Callable[[], int], group: bool = False) -> int:
                 code = work()
         finally:
             os._exit(code)
+    if group:
+        # Here too, so that the group exists when this returns: the caller may signal it
+        # (os.killpg) before the child has run at all.
+        try:
+            os.setpgid(pid, pid)
+        except ProcessLookupError:   # the child has ended already
+            pass
     return pid
 
 

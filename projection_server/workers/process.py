@@ -117,11 +117,11 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
                     os.killpg(pid, signal.SIGKILL)
                     os.waitpid(pid, 0)
                     raise SystemExit(0)
-                os.killpg(pid, signal.SIGSTOP)
+                _signal_tree(pid, signal.SIGSTOP)
                 try:
                     conn.send(_project(simulator, job, settings))
                 finally:
-                    os.killpg(pid, signal.SIGCONT)
+                    _signal_tree(pid, signal.SIGCONT)
             if ends in ready:
                 chunk = ends.read(4096)
                 if not chunk:
@@ -134,6 +134,14 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
                     ended(index).unlink()
                     conn.send((index, result, ok))
     conn.send((None, os.waitpid(pid, 0)[1] == 0, True))
+
+
+def _signal_tree(pid: int, signum: int) -> None:
+    """Send ``signum`` to the tree led by ``pid``, unless all of it has ended."""
+    try:
+        os.killpg(pid, signum)
+    except ProcessLookupError:
+        pass
 
 
 def main() -> None:

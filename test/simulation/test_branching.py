@@ -16,7 +16,7 @@ import yaml
 
 from projection_server import projection
 from projection_server.simulation import Job, load_settings, ProjectionError
-from projection_server.simulation.branching import run_tree
+from projection_server.simulation.branching import run_tree, start_tree
 from projection_server.simulation.runner import Simulator
 from projection_server.workers.bag_store import BagStore
 from projection_server.workers.local import WorkerPool
@@ -77,6 +77,25 @@ def test_a_tree_gives_each_leaf_the_bag_and_timeline_of_its_straight_run(straigh
     assert complete and reports == []
     for job, bag in leaves:
         assert files(bag) == straight[job.key(settings)][0]
+
+
+def test_a_trees_process_group_can_be_paused_as_soon_as_it_is_started(tmp_path):
+    # A worker pauses its tree (SIGSTOP to the tree's group) for another query's projection
+    # that may come at once: the group must exist when start_tree returns.
+    settings, simulator = load_settings(), Simulator()
+    job = jobs()[0]
+    try:
+        for attempt in range(20):
+            bag = tmp_path / str(attempt) / BagStore.name(job, job.key(settings))
+            bag.parent.mkdir()
+            pid = start_tree(simulator.client, [(job, bag)], settings,
+                             lambda index, result, ok: None)
+            os.killpg(pid, signal.SIGSTOP)
+            os.killpg(pid, signal.SIGCONT)
+            os.killpg(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+    finally:
+        simulator.close()
 
 
 def test_a_family_submitted_together_runs_as_one_tree_with_the_same_results(
