@@ -4,13 +4,14 @@ For when one machine is not enough: the actors (:mod:`.actor`) may run on any no
 cluster. One dispatcher thread hands each idle actor one job at a time, or, as the ``local``
 backend does, the queued jobs of one family up to a fair share per actor, run as a tree
 (:mod:`projection_server.simulation.branching`) whose projections come back one by one as
-they end; it takes results as they finish with ``ray.wait``. A job's time limit counts from
-when its actor takes it, in a tree from when the one before it ended. As in the ``local``
-backend, queued jobs are taken by owner (query) in turn, and while every actor is busy, an
-actor running a tree pauses it for another query's projection. Finished bags come
-back as bytes and are published into this process's
-:class:`~projection_server.workers.bag_store.BagStore` under the same job key as the local
-backend uses, so either backend answers from the bags of the other.
+they end. The dispatcher sleeps until a result, a new job or a time limit wakes it: each
+call's future, and a thread per tree that follows its results, put what ends on a queue
+that it waits on. A job's time limit counts from when its actor takes it, in a tree from
+when the one before it ended. As in the ``local`` backend, queued jobs are taken by owner
+(query) in turn, and while every actor is busy, an actor running a tree pauses it for
+another query's projection. Finished bags come back as bytes and are published into this
+process's :class:`~projection_server.workers.bag_store.BagStore` under the same job key as
+the local backend uses, so either backend answers from the bags of the other.
 
 Failures, chosen so that a projection that failed is reported, never silently run again:
 
@@ -37,13 +38,14 @@ from dataclasses import dataclass
 import logging
 import os
 from pathlib import Path
+import queue
 import shutil
 import threading
 import time
 from typing import Any, TYPE_CHECKING
 
 import ray
-from ray.exceptions import GetTimeoutError, RayActorError, RayError
+from ray.exceptions import RayActorError, RayError
 
 from projection_server.simulation.errors import ProjectionError
 from projection_server.simulation.job import code_version
@@ -63,9 +65,6 @@ __all__ = ['RayBackend', 'connect']
 
 _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
-_POLL = 0.02         # s: ray.wait's slice while an idle actor could take a new job
-_POLL_BUSY = 0.5     # s: the same while every actor is busy (nothing new can start)
-_OTHERS = 0.1        # s: the same while a tree could be paused for another query's job
 LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB each
 
 
@@ -171,7 +170,9 @@ class RayBackend(BackendBase):
         self._remote = ray.remote(ProjectionActor).options(
             num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD',
             max_concurrency=2)
-        self._wake = threading.Condition(self._lock)
+        # What wakes the dispatcher: (a call or a tree's generator, its outcome) when one
+        # ends or a tree's projection does; None when there may be new work.
+        self._events: queue.SimpleQueue[tuple[Any, Any] | None] = queue.SimpleQueue()
         self._queue: deque[Request] = deque()
         self._actors = [self._new_actor() for _ in range(workers)]
         self._thread = threading.Thread(target=self._dispatch, name='ray-projection-dispatch',
@@ -200,7 +201,7 @@ class RayBackend(BackendBase):
 
     def _enqueue(self, request: Request) -> None:
         self._queue.append(request)
-        self._wake.notify()
+        self._events.put(None)
 
     def run(self, job: Job, timeout: float) -> str:
         """Run ``job`` (or find its bag) and return the bag's path."""
@@ -235,7 +236,7 @@ class RayBackend(BackendBase):
             if self._closed:
                 return
             self._closed = True
-            self._wake.notify()
+            self._events.put(None)
             while self._queue:
                 self._requests.fail(self._queue.popleft(), ProjectionError(
                     'pool_closed', 'the projection backend was closed'))
@@ -254,30 +255,17 @@ class RayBackend(BackendBase):
                         break
                     self._start_jobs()
                     self._start_others()
-                    waiting = {a.ref: a for a in self._actors if a.ref is not None}
-                    others = {a.other_ref: a for a in self._actors if a.other_ref is not None}
-                    if not waiting and not others:
-                        self._wake.wait()
-                        continue
-                    if any(a.idle for a in self._actors):
-                        limit = _POLL
-                    elif any(_pausable(a) is not None for a in self._actors):
-                        limit = _OTHERS
-                    else:
-                        limit = _POLL_BUSY
-                    ends = [a.other_deadline if a.other is not None else a.deadline
-                            for a in self._actors if _running(a)]
-                now = time.monotonic()
-                limit = max(0.0, min([limit, *(end - now for end in ends)]))
-                done, _ = ray.wait([*waiting, *others], num_returns=1, timeout=limit,
-                                   fetch_local=False)
-                for ref in done:
-                    if ref in others:
-                        self._finish_other(others[ref], ref)
-                    elif waiting[ref].tree is not None:
-                        self._tree_message(waiting[ref], ref)
-                    else:
-                        self._finish(waiting[ref], ref)
+                    ends = self._ends()
+                try:
+                    events = [self._events.get(
+                        timeout=max(0.0, min(ends) - time.monotonic()) if ends else None)]
+                    while not self._events.empty():
+                        events.append(self._events.get_nowait())
+                except queue.Empty:
+                    events = []
+                for event in events:
+                    if event is not None:
+                        self._handle(*event)
                 self._check_deadlines()
         finally:
             with self._lock:
@@ -285,6 +273,55 @@ class RayBackend(BackendBase):
                     for request in _running(actor):
                         self._requests.fail(request, ProjectionError(
                             'pool_closed', 'the projection backend was closed'))
+
+    def _ends(self) -> list[float]:
+        """When :meth:`_check_deadlines` must look next (called with the lock)."""
+        ends = []
+        for actor in self._actors:
+            if _running(actor):
+                if not actor.timed_out:   # else killed: its end comes as an event
+                    ends.append(actor.other_deadline if actor.other is not None
+                                else actor.deadline)
+            elif actor.ref is not None and self._queue:   # starting, with jobs waiting
+                ends.append(actor.started + self.startup_timeout)
+        return ends
+
+    def _handle(self, source: Any, outcome: Any) -> None:
+        """What ended: ``source`` (a call, or a tree's generator) of one of the actors, if
+        it is still theirs; ``outcome`` is the call's future, or the tree's message."""
+        actor = next((a for a in self._actors if source is a.ref or source is a.other_ref),
+                     None)
+        if actor is None:
+            return   # of an actor lost or replaced meanwhile
+        if source is actor.other_ref:
+            self._finish_other(actor, outcome)
+        elif actor.tree is not None:
+            self._tree_message(actor, outcome)
+        else:
+            self._finish(actor, outcome)
+
+    def _watch(self, call: Any) -> Any:
+        """Have ``call`` (an ObjectRef) wake the dispatcher when it ends; returns it."""
+        call.future().add_done_callback(lambda future: self._events.put((call, future)))
+        return call
+
+    def _follow(self, generator: Any) -> Any:
+        """Have each message of a tree's ``generator`` wake the dispatcher, from a thread
+        that waits for them; returns it."""
+        def follow() -> None:
+            while True:
+                try:
+                    message = ray.get(next(generator))
+                except StopIteration:   # ended without its last message
+                    message = (None, False, True)
+                except Exception as exc:   # noqa: BLE001 (the dispatcher says what it was)
+                    message = exc
+                self._events.put((generator, message))
+                if not isinstance(message, tuple) or message[0] is None:
+                    return
+
+        threading.Thread(target=follow, name='ray-tree-results', daemon=True).start()
+        return generator
 
     def _start_jobs(self) -> None:
         """Give queued requests to idle actors, by owner in turn, a family's together
@@ -311,14 +348,15 @@ class RayBackend(BackendBase):
             actor.timed_out = False
             if len(taken) == 1:
                 actor.request = request
-                actor.ref = actor.handle.project.remote(
-                    request.job, self.store.name(request.job, request.key))
+                actor.ref = self._watch(actor.handle.project.remote(
+                    request.job, self.store.name(request.job, request.key)))
                 actor.deadline = actor.started + request.timeout
             else:
                 _log.debug('a tree of %d projections from %s', len(taken), request.key[:12])
                 actor.tree = dict(enumerate(taken))
-                actor.ref = actor.handle.tree.options(num_returns='streaming').remote(
-                    [(r.job, self.store.name(r.job, r.key)) for r in taken])
+                actor.ref = self._follow(actor.handle.tree.options(
+                    num_returns='streaming').remote(
+                    [(r.job, self.store.name(r.job, r.key)) for r in taken]))
                 actor.deadline = actor.started + max(r.timeout for r in taken)
         if started:
             self._forget_owners([*self._queue, *(r for a in self._actors for r in _running(a))])
@@ -338,24 +376,25 @@ class RayBackend(BackendBase):
                 continue
             self._count([request])
             actor.other = request
-            actor.other_ref = actor.handle.project.remote(
-                request.job, self.store.name(request.job, request.key))
+            actor.other_ref = self._watch(actor.handle.project.remote(
+                request.job, self.store.name(request.job, request.key)))
             actor.other_deadline = time.monotonic() + request.timeout
 
-    def _answer(self, actor: _Actor, ref: Any) -> tuple[Any, bool] | None:
-        """``(result, ok)`` of ``actor``'s call ``ref``; None if the actor died (handled)."""
+    def _answer(self, actor: _Actor, future: Any) -> tuple[Any, bool] | None:
+        """``(result, ok)`` of ``actor``'s ended call (its ``future``); None if the actor
+        died (handled)."""
         try:
-            return ray.get(ref, timeout=self.startup_timeout)
+            return future.result()
         except RayActorError as exc:
             self._lost(actor, exc)
             return None
-        except (GetTimeoutError, RayError) as exc:
+        except RayError as exc:
             return ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}'), False
 
-    def _finish_other(self, actor: _Actor, ref: Any) -> None:
+    def _finish_other(self, actor: _Actor, future: Any) -> None:
         """The projection that paused ``actor``'s tree has ended."""
         request = actor.other
-        answer = self._answer(actor, ref)
+        answer = self._answer(actor, future)
         if answer is None:
             return
         result = self._result(request, *answer)
@@ -365,11 +404,11 @@ class RayBackend(BackendBase):
             actor.other = actor.other_ref = None
             self._settle(actor, request, result)
             _tree_deadline(actor, self.startup_timeout)   # the pause does not count
-            self._wake.notify()
+            self._events.put(None)
 
-    def _finish(self, actor: _Actor, ref: Any) -> None:
+    def _finish(self, actor: _Actor, future: Any) -> None:
         request = actor.request
-        answer = self._answer(actor, ref)
+        answer = self._answer(actor, future)
         if answer is None:
             return
         value, ok = answer
@@ -390,20 +429,17 @@ class RayBackend(BackendBase):
             self._settle(actor, request, result)
             if actor.projections >= self.max_projections and not self._closed:
                 self._replace(actor)
-            self._wake.notify()
+            self._events.put(None)
 
-    def _tree_message(self, actor: _Actor, generator: Any) -> None:
+    def _tree_message(self, actor: _Actor, value: Any) -> None:
         """The next message of the tree that ``actor`` runs: a projection's result, or its
-        end (after which the projections it did not finish are queued again, one by one)."""
-        try:
-            value = ray.get(next(generator), timeout=self.startup_timeout)
-        except StopIteration:   # ended without its last message
-            value = (None, False, True)
-        except RayActorError as exc:
-            self._lost(actor, exc)
+        end (after which the projections it did not finish are queued again, one by one),
+        or the error that ended it."""
+        if isinstance(value, RayActorError):
+            self._lost(actor, value)
             return
-        except (GetTimeoutError, RayError) as exc:
-            _log.warning('a tree of projections failed: %s', _first_line(exc))
+        if isinstance(value, Exception):
+            _log.warning('a tree of projections failed: %s', _first_line(value))
             value = (None, False, True)
         index, result, ok = value
         if index is None:
@@ -412,7 +448,7 @@ class RayBackend(BackendBase):
                 self._again(left)
                 if actor.projections >= self.max_projections and not self._closed:
                     self._replace(actor)
-                self._wake.notify()
+                self._events.put(None)
             return
         request = actor.tree[index]
         result = self._result(request, result, ok)
@@ -472,7 +508,7 @@ class RayBackend(BackendBase):
                         self._requests.fail(request, self._failure(request, exc, False))
                 else:
                     self._again(list(tree.values()))
-                    self._wake.notify()
+                    self._events.put(None)
             if self._closed:
                 actor.ref = None
                 return
@@ -533,12 +569,12 @@ class RayBackend(BackendBase):
     def _restarting(self, actor: _Actor) -> None:
         """Wait for Ray to restart the actor (called with the lock)."""
         actor.info, actor.projections = None, 0
-        actor.ref = actor.handle.ready.options(max_task_retries=-1).remote()
+        actor.ref = self._watch(actor.handle.ready.options(max_task_retries=-1).remote())
         actor.started = time.monotonic()
 
     def _new_actor(self) -> _Actor:
         actor = _Actor(self._remote.remote(self.settings.to_dict()))
-        actor.ref = actor.handle.ready.options(max_task_retries=-1).remote()
+        actor.ref = self._watch(actor.handle.ready.options(max_task_retries=-1).remote())
         actor.started = time.monotonic()
         return actor
 
