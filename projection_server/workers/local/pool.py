@@ -33,6 +33,7 @@ from collections import deque
 import logging
 import multiprocessing
 from multiprocessing.connection import wait
+import os
 import shutil
 import threading
 import time
@@ -47,7 +48,6 @@ _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
-    import os
 
     from projection_server.simulation.job import Job
     from projection_server.simulation.settings import Settings
@@ -57,7 +57,6 @@ if TYPE_CHECKING:
 __all__ = ['WorkerPool']
 
 _POLL = 1.0   # s between liveness checks while waiting for a result
-_OTHERS = 0.1   # s between looks for other queries' projections while a tree runs
 
 
 class WorkerPool(BackendBase):
@@ -100,6 +99,14 @@ class WorkerPool(BackendBase):
     def _enqueue(self, request: Request) -> None:
         self._pending.append(request)
         self._ready.notify()
+        self._wake_trees()
+
+    def _wake_trees(self) -> None:
+        """Have the workers that run trees look for another query's projection to pause
+        them for: one may be queued and every worker busy now (with the lock)."""
+        for slot in self._slots:
+            if len(slot.requests) > 1:
+                slot.wake()
 
     def _take(self) -> list[Request]:
         """The next queued request, with the queued ones of its family up to a fair share
@@ -195,6 +202,9 @@ class _Slot:
         self._projections = 0   # made by the running worker process
         self.requests: list[Request] = []   # the projections it runs (a tree's, or one)
         self.warmed: dict[str, Any] | None = None   # the running worker's warm-up
+        # A byte on it wakes a running tree's wait (see WorkerPool._wake_trees).
+        self._wake_reader, self._wake_writer = os.pipe()
+        os.set_blocking(self._wake_writer, False)
         self._thread = threading.Thread(target=self._loop, name=f'projection-worker-{index}',
                                         daemon=True)
         self._thread.start()
@@ -210,6 +220,14 @@ class _Slot:
 
     def join(self, timeout: float) -> None:
         self._thread.join(timeout)
+
+    def wake(self) -> None:
+        """Wake the wait of the tree this slot runs (with the pool's lock)."""
+        if self._wake_writer is not None:
+            try:
+                os.write(self._wake_writer, b'\0')
+            except BlockingIOError:   # full: it wakes anyway
+                pass
 
     def terminate_worker(self) -> None:
         """Ask the running worker to stop (SIGTERM); its supervisor thread cleans up."""
@@ -234,6 +252,7 @@ class _Slot:
                     if pool._closed:
                         return
                     self.requests = requests = pool._take()
+                    pool._wake_trees()   # every worker may be busy now
                 left = self._run_tree(requests) if len(requests) > 1 else requests
                 for request in left:
                     self.requests = [request]
@@ -250,6 +269,10 @@ class _Slot:
                         pass   # the next projection tries again and reports it
         finally:
             self._stop()
+            with pool._lock:
+                os.close(self._wake_reader)
+                os.close(self._wake_writer)
+                self._wake_writer = None
 
     def _run(self, request: Request) -> None:
         """Run ``request`` (already marked running) and settle its future."""
@@ -310,8 +333,12 @@ class _Slot:
                         self.requests = [*self.requests, request]
                         self._conn.send(('project', (request.job, str(other[1]))))
                 limit = other[2] if other is not None else deadline
-                ready = wait([self._conn, self._process.sentinel],
-                             timeout=max(0.0, min(limit - time.monotonic(), _OTHERS)))
+                ready = wait([self._conn, self._process.sentinel, self._wake_reader],
+                             timeout=max(0.0, limit - time.monotonic()))
+                if self._wake_reader in ready:
+                    os.read(self._wake_reader, 4096)
+                    if len(ready) == 1:
+                        continue   # look for another query's projection (above)
                 if not ready:
                     if time.monotonic() < limit:
                         continue
