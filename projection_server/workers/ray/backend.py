@@ -280,8 +280,7 @@ class RayBackend(BackendBase):
         for actor in self._actors:
             if _running(actor):
                 if not actor.timed_out:   # else killed: its end comes as an event
-                    ends.append(actor.other_deadline if actor.other is not None
-                                else actor.deadline)
+                    ends.append(_deadline(actor))
             elif actor.ref is not None and self._queue:   # starting, with jobs waiting
                 ends.append(actor.started + self.startup_timeout)
         return ends
@@ -539,8 +538,7 @@ class RayBackend(BackendBase):
                 if actor.ref is None and actor.other is None:
                     continue
                 if _running(actor):
-                    end = actor.other_deadline if actor.other is not None else actor.deadline
-                    if now >= end and not actor.timed_out:
+                    if now >= _deadline(actor) and not actor.timed_out:
                         actor.timed_out = True
                         _kill(actor.handle, restart=True)
                 elif now - actor.started > self.startup_timeout and self._queue:
@@ -587,6 +585,12 @@ class RayBackend(BackendBase):
         actor.info = actor.error = actor.request = actor.tree = None
         actor.other = actor.other_ref = None
         actor.projections = 0
+
+
+def _deadline(actor: _Actor) -> float:
+    """The time limit of what ``actor`` runs: another query's projection's while it
+    pauses the tree (the pause does not count against the tree)."""
+    return actor.other_deadline if actor.other is not None else actor.deadline
 
 
 def _tree_deadline(actor: _Actor, default: float) -> None:
