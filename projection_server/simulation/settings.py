@@ -17,7 +17,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 import functools
-import json
 import math
 import os
 from pathlib import Path
@@ -180,8 +179,9 @@ class Settings:
         wanted = (program, tuple(sorted((physics or {}).items())))
         text = self._projection_json.get(wanted)
         if text is None:
-            text = json.dumps(self.for_projection(program, physics).to_dict(), sort_keys=True,
-                              separators=(',', ':'), allow_nan=False)
+            from projection_server.simulation.job import canonical_json   # (imports this)
+
+            text = canonical_json(self.for_projection(program, physics).to_dict())
             if len(self._projection_json) < 256:
                 self._projection_json[wanted] = text
         return text
