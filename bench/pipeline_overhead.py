@@ -14,9 +14,9 @@ Runs the same projections twice in one process, alternating:
   monitoring, no bag).
 
 The floor is also stepped with just the engine queries that the log and the object models
-need, and nothing done with their answers: each step the contact points of every moving
-body and, where the egg is touched, its pose and the states of the touching gripper's pad
-links; each monitoring sample the poses of the moving bodies and particles, their links'
+need, and nothing done with their answers beyond telling which pad touches the egg: each
+step the contact points of every moving body and, where the egg is touched, its pose and
+the states of the touching gripper's pad links; each monitoring sample the poses of the moving bodies and particles, their links'
 states, the grippers' joints and the contact points of every body. That is what no
 implementation of the monitor and the egg's shell in this process can avoid; what is left
 of the goal's ratio beyond it is the budget of all the pipeline's Python on those answers.
@@ -125,7 +125,8 @@ def floor(client, job, settings, models: bool = False,
     linked = [(b.body_id, sorted(b.links)) for b in solid if not b.static and b.links]
     grippers = list(physics.grippers.values())
     # The egg's shell asks, in a step with contacts, for its own pose and, when a pad
-    # touches it, for the states of that gripper's pad links.
+    # touches it, for the states of that gripper's pad links (which pad touches is read
+    # from the points: the least the shell must do with them).
     pad_links = {(g.body_id, pad.link): (g.body_id, tuple(p.link for p in g.pads))
                  for g in grippers for pad in g.pads}
     particles = [i for fluid in physics.fluids.values() for i in fluid.body_ids]
