@@ -37,7 +37,7 @@ setup(
     license='BSD-3-Clause',
     entry_points={
         'console_scripts': [
-            'projection_server = projection_server.node:main',
+            'projection_server = projection_server.service.node:main',
             'prolog_query = projection_server.client.cli:main',
             'projection_reproduce = projection_server.reproduce.__main__:main',
         ],

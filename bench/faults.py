@@ -141,7 +141,7 @@ def main() -> int:
     os.environ.setdefault('ROS_DOMAIN_ID', str(10 + os.getpid() % 90))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     import rclpy
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
 
     work = Path(tempfile.mkdtemp(prefix='faults-'))
     bag_dir = work / 'bags'

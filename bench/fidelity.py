@@ -40,7 +40,7 @@ def main() -> int:
     import rclpy
 
     from projection_server.client import PrologClient
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
     from projection_server.reproduce.experiments import (compare, run_experiment,
                                                          TABLE_I_GRASPING, TABLE_II_POURING,
                                                          TABLE_III_TURNING)

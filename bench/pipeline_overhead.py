@@ -209,11 +209,11 @@ def main() -> int:
 
     import pybullet
 
-    from projection_server import prolog_bridge
+    from projection_server.service import prolog_bridge
     from projection_server.simulation.job import Job
     from projection_server.simulation.physics import bound_client
     from projection_server.simulation.runner import Simulator
-    from projection_server.simulation.settings import load_settings, Settings
+    from projection_server.settings import load_settings, Settings
 
     prolog_bridge.load()
     settings = load_settings()

@@ -80,7 +80,7 @@ def main() -> int:
     from projection_server.simulation.physics import bound_client
     from projection_server.simulation.programs.pour import SETTLE
     from projection_server.simulation.scenario import parse_scenario
-    from projection_server.simulation.settings import load_settings
+    from projection_server.settings import load_settings
 
     scenario = parse_scenario(kb_scenario('pouring'))
     settings = load_settings().for_projection('pour', json.loads(args.physics))

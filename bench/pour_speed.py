@@ -33,8 +33,8 @@ def main() -> int:
     import rclpy
 
     from projection_server.client import PrologClient
-    from projection_server.launcher import node_command, NodeProcess
-    from projection_server.simulation.settings import load_settings
+    from projection_server.client.launcher import node_command, NodeProcess
+    from projection_server.settings import load_settings
 
     settings = load_settings()
     own = settings.for_projection('pour').physics

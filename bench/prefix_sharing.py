@@ -46,7 +46,7 @@ _state: dict = {}
 
 def _start() -> None:
     from projection_server.simulation.runner import Simulator
-    from projection_server.simulation.settings import load_settings
+    from projection_server.settings import load_settings
 
     _state['description'] = kb_scenario(SCENARIO)
     _state['settings'] = load_settings()

@@ -43,7 +43,7 @@ def main() -> int:
 
     import rclpy
     from projection_server.client import PrologClient, PrologQueryError
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
     from std_srvs.srv import Trigger
 
     rclpy.init()

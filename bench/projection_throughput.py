@@ -107,7 +107,7 @@ def _pipeline_start() -> None:
     """A pipeline process: a warm simulator, as a worker has it (warm-up included)."""
     global _simulator
     from projection_server.simulation.runner import Simulator
-    from projection_server.simulation.settings import load_settings
+    from projection_server.settings import load_settings
     from projection_server.workers.warm_up import warm_up
 
     _simulator = Simulator()
@@ -138,7 +138,7 @@ def parallel_pipeline(jobs, settings, workers: int) -> tuple[float, float]:
 
 
 def node(workers: int, bag_dir: str, log: Path, **params: object):
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
 
     return NodeProcess(node_command('/projection_server', {
         'projection_workers': workers, 'bag_dir': bag_dir, 'default_timeout': 600.0,
@@ -176,10 +176,10 @@ def main() -> int:
     import pybullet
     import rclpy
 
-    from projection_server import prolog_bridge
+    from projection_server.service import prolog_bridge
     from projection_server.simulation.job import Job
     from projection_server.simulation.physics import bound_client
-    from projection_server.simulation.settings import load_settings
+    from projection_server.settings import load_settings
 
     prolog_bridge.load()
     settings = load_settings()

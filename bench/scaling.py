@@ -40,7 +40,7 @@ def kb_scenarios(node_dir: str) -> dict[str, dict]:
 
     from projection_server.bags import read_bag
     from projection_server.client import PrologClient
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
 
     rclpy.init()
     log = os.path.join(node_dir, 'node.log')

@@ -64,7 +64,8 @@ class Recorder:
 
 
 def run(workers: int, recorder: Recorder) -> dict[str, float]:
-    from projection_server import projection, prolog_bridge
+    from projection_server import projection
+    from projection_server.service import prolog_bridge
 
     with tempfile.TemporaryDirectory() as bags:
         projection.configure(bag_dir=bags, workers=workers)
@@ -105,7 +106,7 @@ def main() -> int:
     parser.add_argument('--repeat', type=int, default=3)
     args = parser.parse_args()
 
-    from projection_server import prolog_bridge
+    from projection_server.service import prolog_bridge
 
     prolog_bridge.load()
     prolog_bridge.attach_engine()

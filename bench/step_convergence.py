@@ -46,8 +46,8 @@ def kb_scenario(name: str) -> dict:
 def outcome(job: tuple) -> tuple[tuple, str, float]:
     """Run one projection; its Table I or III outcome and wall time."""
     from projection_server.simulation import Job, load_settings
-    from projection_server.simulation.runner import run_projection
-    from projection_server.timeline.translate import translate_bag
+    from projection_server.workers.run import run_projection
+    from projection_server.workers.run import translate_bag
 
     scenario, program, params, factor, *scaled = job
     base = load_settings()

@@ -7,9 +7,9 @@ variable ``PROJECTION_SERVER_BAG_DIR``, else ``~/.cache/projection_server/bags``
     >>> path = simulate(scenario, 'grasp_object', {'force': 5.0, 'position': 0.0}, 60.0)
     >>> timeline(path)['events']
 
-Projections are owned by the query that asks for them: a query's thread calls
-:func:`set_owner` once (Prolog called through janus runs in that thread), the projections
-it submits are tagged with that owner, and :func:`cancel` stops them and its waits.
+Projections are owned by the query that asks for them: Prolog passes the query's owner
+token (its context, set by the query service) with every call, the projections it submits
+are tagged with it, and :func:`cancel` stops them and the query's waits.
 
 The worker that ran a projection also made its timeline; :func:`simulate` keeps it until
 :func:`timeline` hands it over (once), so the bag is read back only for older logs.
@@ -28,7 +28,7 @@ import time
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation import programs as _programs
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import Job
 from projection_server.workers import create_backend, Retention
 
@@ -50,7 +50,6 @@ __all__ = [
     'programs',
     'project',
     'release',
-    'set_owner',
     'shutdown',
     'simulate',
     'start',
@@ -71,10 +70,7 @@ _config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None,
 # query that never asks for its timelines must not grow the process).
 _timelines: OrderedDict[str, dict[str, Any]] = OrderedDict()
 _KEEP_TIMELINES = 64
-# The owner of the calling thread's projections (set_owner), and a stop event per owner
-# that makes its waits end at once when it is cancelled.
-_owners: dict[int, str] = {}  # thread ident -> owner; janus may not keep a Prolog
-# thread's Python thread state between calls, so threading.local would forget it
+# A stop event per owner (query) that makes its waits end at once when it is cancelled.
 _stops: dict[str, threading.Event] = {}
 
 
@@ -102,7 +98,7 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
     global _backend
     with _lock:
         if workers is not None and (not isinstance(workers, int) or workers < 1):
-            raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'workers must be >= 1, got {workers!r}')
         updates = {'bag_dir': bag_dir, 'workers': workers, 'backend': backend,
                    'ray_address': ray_address,
                    'retention': Retention.of(retention) if retention is not None else None}
@@ -131,7 +127,6 @@ def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
             ``invalid_parameters``, ``timeout``, ``worker_crashed``, ``simulation_failed``,
             ``cancelled``...
     """
-    owner = owner if owner is not None else _thread_owner()
     result = _wait(submit(scenario, program, params, timeout, owner, physics), owner)
     return {'bag': result.bag, 'timeline': result.timeline}
 
@@ -141,7 +136,6 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
              physics: Mapping[str, Any] | None = None) -> str:
     """Like :func:`project`, but return the path of the bag and keep the timeline for
     :func:`timeline`."""
-    owner = owner if owner is not None else _thread_owner()
     future = submit(scenario, program, params, timeout, owner, physics)
     cached = future.done()   # its bag was made before, or prefetched and is done
     started = time.monotonic()
@@ -173,7 +167,7 @@ def timeline(bag: str | os.PathLike[str]) -> dict[str, Any]:
         made = _timelines.pop(os.fspath(bag), None)
     if made is not None:
         return made
-    from projection_server.timeline.translate import translate_bag
+    from projection_server.workers.run import translate_bag
 
     return translate_bag(bag)
 
@@ -187,7 +181,7 @@ def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
     :func:`project` of the same projection waits for the same future.
     """
     job = Job.checked(scenario, program, params, physics)
-    return _get_backend().submit(job, timeout, owner if owner is not None else _thread_owner())
+    return _get_backend().submit(job, timeout, owner)
 
 
 def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
@@ -207,8 +201,7 @@ def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str,
         except ProjectionError:
             pass
     if jobs:
-        _get_backend().submit_all(jobs, timeout,
-                                  owner if owner is not None else _thread_owner())
+        _get_backend().submit_all(jobs, timeout, owner)
     return len(jobs)
 
 
@@ -286,29 +279,10 @@ def drop(owner: str) -> int:
     return backend.cancel(owner, running=False) if backend is not None else 0
 
 
-def set_owner(owner: str | None) -> None:
-    """Make ``owner`` the owner of the projections the calling thread submits without one.
-
-    A query's thread calls this once with a token unique to the query; None clears it.
-    """
-    with _lock:
-        if owner is None:
-            _owners.pop(threading.get_ident(), None)
-        else:
-            _owners[threading.get_ident()] = owner
-            _stops.setdefault(owner, threading.Event())
-
-
 def release(owner: str) -> None:
     """Forget ``owner`` once its query has ended."""
     with _lock:
         _stops.pop(owner, None)
-        for ident in [i for i, o in _owners.items() if o == owner]:
-            del _owners[ident]
-
-
-def _thread_owner() -> str | None:
-    return _owners.get(threading.get_ident())
 
 
 def workers() -> int:
@@ -349,16 +323,16 @@ def shutdown() -> None:
 
 def _wait(future: Future[ProjectionResult], owner: str | None = None) -> ProjectionResult:
     with _lock:
-        stop = _stops.get(owner) if owner is not None else None
+        stop = _stops.setdefault(owner, threading.Event()) if owner is not None else None
     while True:
         if stop is not None and stop.is_set():
-            raise ProjectionError('cancelled', 'the query waiting for it was cancelled')
+            raise ProjectionError(ErrorKind.CANCELLED, 'the query waiting for it was cancelled')
         try:
             return future.result(timeout=_POLL if stop is None else 0.05)
         except TimeoutError:
             with _lock:
                 if _backend is None:
-                    raise ProjectionError('pool_closed', 'the projection backend was closed')
+                    raise ProjectionError(ErrorKind.POOL_CLOSED, 'the projection backend was closed')
 
 
 def _get_backend() -> WorkerBackend:

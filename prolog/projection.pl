@@ -5,7 +5,8 @@
             translate/2,                % +Log, -Timeline
             projection_program/2,       % ?Program, -FormalParams:list(dict)
             projection_physics_setting/3, % ?Program, ?Name, -Setting:dict
-            projection_default_timeout/1 % -Seconds
+            projection_default_timeout/1, % -Seconds
+            with_query_context/2        % +Context:dict, :Goal
           ]).
 :- autoload(library(apply), [maplist/3, foldl/4]).
 :- autoload(library(error),
@@ -16,6 +17,7 @@
 :- autoload(library(aggregate), [aggregate_all/3]).
 :- autoload(library(solution_sequences), [limit/2]).
 :- use_module(library(janus), [py_call/2]).
+:- meta_predicate with_query_context(+, 0).
 :- use_module(scenario, [scenario_description/2]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1,
                          occurs/3]).
@@ -101,19 +103,50 @@ make_projection(Scenario, Program, Params, Timeline) :-
     make_projection(Scenario, Program, Params, Timeout, Timeline).
 
 make_projection(Scenario, Program, Params, Options, Timeline) :-
-    simulate(Scenario, Program, Params, Options, Log),
+    simulate(Scenario, Program, Params, Options, Log, Step),
     translate(Log, Timeline),
-    report_progress(Log, Timeline).
+    report_progress(Step, Log, Timeline).
 
 % The running query's progress listener (feedback of the ~/project action) hears of
 % each finished projection: its place in the enumeration, parameters, events and bag.
-report_progress(Log, Timeline) :-
-    b_getval('$projection_step', step(I, Total, Program, Values)),
+report_progress(step(I, Total, Program, Values), Log, Timeline) :-
     findall(Name, ( occurs(Event, _, Timeline), functor(Event, Name, _) ), Names0),
     list_to_set(Names0, Names),
     Index is I + 1,
-    py_call('projection_server.progress':projection_done(Index, Total, Program, Values,
-                                                         Log, Names)).
+    query_context(Query),
+    py_call('projection_server.service.progress':projection_done(Query, Index, Total,
+                                                                 Program, Values, Log,
+                                                                 Names)).
+
+%!  with_query_context(+Context:dict, :Goal) is nondet.
+%
+%   Run Goal as the query the service knows by Context, `_{id: Id, owner:
+%   Owner}`: the projections Goal makes are owned by Owner (the service
+%   cancels them with the query) and report their progress to the query Id.
+%   The query service runs each query's goal this way (query_service.pl);
+%   outside it, projections have no owner.
+
+:- thread_local current_query_context/1.
+
+with_query_context(Context, Goal) :-
+    must_be(dict, Context),
+    setup_call_cleanup(asserta(current_query_context(Context), Ref),
+                       Goal,
+                       erase(Ref)).
+
+% query_context(-Query): the context of the query this thread runs, for Python
+% (a dict, or None).
+query_context(Query) :-
+    (   current_query_context(Context)
+    ->  Query = Context
+    ;   Query = @(none)
+    ).
+
+query_owner(Owner) :-
+    (   current_query_context(Context)
+    ->  get_dict(owner, Context, Owner)
+    ;   Owner = @(none)
+    ).
 
 %!  simulate(+Scenario, +Program, +Params, +Options, -Log) is nondet.
 %
@@ -121,6 +154,11 @@ report_progress(Log, Timeline) :-
 %   path of its bag.  Options and errors as for make_projection/5.
 
 simulate(Scenario, Program, Params, Options, Log) :-
+    simulate(Scenario, Program, Params, Options, Log, _Step).
+
+% simulate(..., -Step): Step is step(I, Total, Program, Values), the 0-based place
+% of the projection in the enumeration, for make_projection's progress report.
+simulate(Scenario, Program, Params, Options, Log, step(I, Total, Program, Values)) :-
     must_be(atom, Scenario),
     must_be(atom, Program),
     must_be(list, Params),
@@ -140,12 +178,12 @@ simulate(Scenario, Program, Params, Options, Log) :-
     py_call('projection_server.projection':prefetch_plan(Program, All, Depth), Plan),
     Table =.. [params|All],
     pairs_keys_values(Steps, All, Plan),
-    nth0(I, Steps, Values-Ahead),
-    prefetch(Description, Program, Table, Ahead, Timeout, Physics),
-    maplist(bind_choice(Values), Choices),
-    run_simulation(Description, Program, Values, Timeout, Physics, Log),
     length(All, Total),
-    b_setval('$projection_step', step(I, Total, Program, Values)).
+    query_owner(Owner),
+    nth0(I, Steps, Values-Ahead),
+    prefetch(Description, Program, Table, Ahead, Timeout, Physics, Owner),
+    maplist(bind_choice(Values), Choices),
+    run_simulation(Description, Program, Values, Timeout, Physics, Owner, Log).
 
 bind_choice(Values, choice(Var, Name, _)) :-
     get_dict(Name, Values, Var).
@@ -156,11 +194,12 @@ bind_choice(Values, choice(Var, Name, _)) :-
 % program whose parametrizations share their first steps, the next Depth+1
 % families of them, each family at once.  Each is queued once: queueing it
 % again would cost a check and a key (a third of a cached query).
-prefetch(_, _, _, [], _, _) :- !.
-prefetch(Description, Program, Table, Ahead, Timeout, Physics) :-
+prefetch(_, _, _, [], _, _, _) :- !.
+prefetch(Description, Program, Table, Ahead, Timeout, Physics, Owner) :-
     findall(V, ( member(J, Ahead), A is J + 1, arg(A, Table, V) ), Next),
     py_call('projection_server.projection':prefetch(Description, Program, Next,
-                                                    Timeout, physics=Physics), _).
+                                                    Timeout, physics=Physics,
+                                                    owner=Owner), _).
 
 projection_options(_, Timeout, Timeout, _{}) :-
     number(Timeout), !,
@@ -256,10 +295,11 @@ instantiate([choice(_, Name, Values)|T], [Name-Value|Pairs]) :-
     member(Value, Values),
     instantiate(T, Pairs).
 
-run_simulation(Description, Program, Values, Timeout, Physics, Log) :-
+run_simulation(Description, Program, Values, Timeout, Physics, Owner, Log) :-
     catch(py_call('projection_server.projection':simulate(Description, Program,
                                                           Values, Timeout,
-                                                          physics=Physics), Log0),
+                                                          physics=Physics,
+                                                          owner=Owner), Log0),
           error(python_error(Class, Value), _),
           projection_error(Class, Value)),
     atom_string(Log, Log0).
@@ -365,7 +405,7 @@ projection_physics_setting(Program, Name, Setting) :-
 
 projection_default_timeout(60).
 
-:- multifile prolog:message//1.
+:- multifile prolog:error_message//1.
 
-prolog:message(error(projection_error(Kind, Message), _)) -->
+prolog:error_message(projection_error(Kind, Message)) -->
     [ 'Projection failed (~w): ~w'-[Kind, Message] ].

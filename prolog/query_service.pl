@@ -10,6 +10,7 @@
 :- use_module(library(time), [alarm/4, install_alarm/2, uninstall_alarm/1, remove_alarm/1]).
 :- use_module(library(modules), [in_temporary_module/3]).
 :- use_module(json_bindings, [bindings_json/2, term_json/3, json_text/2]).
+:- use_module(projection, [with_query_context/2]).
 
 /** <module> Running query text for the ROS query service
 
@@ -55,6 +56,9 @@ query_check(Text, Options, Result) :-
 %       safe; `false` (or janus' `@false`) runs any goal
 %     - stack_limit: bytes of Prolog stacks this engine may use
 %     - max_answer: most cells (roughly 8 bytes each) an answer may have
+%     - query: `_{id: Id, owner: Owner}`, the query as the service knows it:
+%       the projections the goal makes are owned by Owner and report their
+%       progress to Id (projection:with_query_context/2)
 %
 %   The query runs in a temporary module that is deleted when the query is
 %   closed.
@@ -118,9 +122,13 @@ bounded_open_string(S, In) :- parsable(S), system:open_string(S, In).
 solve(M, Text, Options, Json) :-
     prepare(M, Text, Options, Goal, Bindings),
     Run = ( M:Goal, encode(Bindings, Options, Json) ),
+    (   get_dict(query, Options, Query)
+    ->  Solve = with_query_context(Query, Run)
+    ;   Solve = Run
+    ),
     (   get_dict(timeout, Options, Limit), number(Limit), Limit > 0
-    ->  limited_call(Run, Limit)
-    ;   call(Run)
+    ->  limited_call(Solve, Limit)
+    ;   call(Solve)
     ).
 
 encode(Bindings, Options, Json) :-

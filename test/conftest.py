@@ -31,7 +31,7 @@ def rclpy_context():
 @pytest.fixture(scope='session')
 def server(rclpy_context, tmp_path_factory):
     """Start the node; yield its name. Its log is kept in the test's tmp dir."""
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
     name = 'projection_server'
     log = tmp_path_factory.mktemp('node') / 'node.log'
     params = {**NODE_PARAMS, 'bag_dir': str(tmp_path_factory.mktemp('bags'))}

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from projection_server.bindings import (Atom, Compound, DecodeError, Var, decode,
+from projection_server.client.bindings import (Atom, Compound, DecodeError, Var, decode,
                                         decode_solution, to_prolog_text)
 from projection_server.client.cli import format_table
 

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from projection_server.launcher import LaunchError, node_command, NodeProcess
+from projection_server.client.launcher import LaunchError, node_command, NodeProcess
 
 
 def _python(code: str) -> list[str]:

@@ -113,7 +113,7 @@ def test_a_deadline_ends_the_command_with_its_own_exit_code(server, progress):
 
 def test_a_server_that_dies_under_a_running_query_is_reported(rclpy_context, tmp_path):
     from projection_server.client import PrologClient
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
 
     name = 'doomed_server'
     params = {'bag_dir': str(tmp_path / 'bags'), 'default_timeout': 300.0}

@@ -8,7 +8,7 @@ import subprocess
 
 import pytest
 
-from projection_server.prolog_bridge import prolog_dir
+from projection_server.service.prolog_bridge import prolog_dir
 
 PLT = sorted(glob.glob(os.path.join(prolog_dir(), '**', '*.plt'), recursive=True))
 

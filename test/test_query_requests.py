@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from projection_server.queries import (ALL, INCREMENTAL, nesting_depth, ONCE, QueryError,
+from projection_server.service.queries import (ALL, INCREMENTAL, nesting_depth, ONCE, QueryError,
                                        QueryManager, ServerLimits)
 
 

@@ -10,7 +10,7 @@ import time
 from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQuery
 import pytest
 
-from projection_server.bindings import Atom, Compound, Var
+from projection_server.client.bindings import Atom, Compound, Var
 from projection_server.client import PrologQueryError
 
 Q = PrologQuery.Request

@@ -55,7 +55,7 @@ def cluster():
 
 @pytest.fixture(scope='module')
 def ray_server(cluster, rclpy_context, tmp_path_factory):
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
     log = tmp_path_factory.mktemp('ray_node') / 'node.log'
     params = {'default_timeout': 5.0, 'max_engines': 4,
               'bag_dir': str(tmp_path_factory.mktemp('ray_bags')),

@@ -66,11 +66,11 @@ def main() -> int:
 
     import janus_swi as janus
 
-    from projection_server import prolog_bridge
+    from projection_server.service import prolog_bridge
     from projection_server.simulation import Job, load_settings
     from projection_server.simulation.branching import run_tree
     from projection_server.simulation.runner import Simulator
-    from projection_server.timeline.translate import translate_bag
+    from projection_server.workers.run import project, translate_bag
 
     prolog_bridge.load()
     janus.query_once('knowledge_base:knowledge_base_load')
@@ -81,8 +81,8 @@ def main() -> int:
         try:
             for label, (name, program, params) in {'grasp': GRASP, 'turn': TURN}.items():
                 bag = Path(tmp) / label
-                timeline = simulator.run(Job.checked(scenario(name), program, params),
-                                         settings, bag)
+                timeline = project(simulator, Job.checked(scenario(name), program, params),
+                                   settings, bag)
                 digests[label] = {'bag': bag_digest(bag), 'timeline': timeline_digest(timeline)}
             name, program, family = POUR_TREE
             leaves = [(Job.checked(scenario(name), program, p), Path(tmp) / f'pour{i}')

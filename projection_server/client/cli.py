@@ -16,7 +16,7 @@ from typing import Any, TYPE_CHECKING
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
-from projection_server.bindings import to_prolog_text
+from projection_server.client.bindings import to_prolog_text
 from projection_server.client.prolog_client import (PrologClient, PrologClientError,
                                                     PrologDeadlineError, PrologQueryError)
 

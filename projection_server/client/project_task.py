@@ -19,7 +19,7 @@ from action_msgs.msg import GoalStatus
 from projection_interfaces.action import Project
 from unique_identifier_msgs.msg import UUID
 
-from projection_server.bindings import decode_solution
+from projection_server.client.bindings import decode_solution
 from projection_server.client.prolog_client import (PrologClientError, PrologDeadlineError,
                                                     PrologQueryError)
 

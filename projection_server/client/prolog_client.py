@@ -37,7 +37,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import Trigger
 
-from projection_server.bindings import decode_solution
+from projection_server.client.bindings import decode_solution
 
 __all__ = [
     'PrologClient',

@@ -14,7 +14,7 @@ import shutil
 import sys
 from typing import Iterator, TYPE_CHECKING
 
-from projection_server.launcher import LaunchError, node_command, NodeProcess
+from projection_server.client.launcher import LaunchError, node_command, NodeProcess
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

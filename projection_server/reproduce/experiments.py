@@ -17,7 +17,7 @@ import math
 import time
 from typing import Any, Callable, TYPE_CHECKING
 
-from projection_server.bindings import Compound
+from projection_server.client.bindings import Compound
 from projection_server.reproduce import paper
 
 if TYPE_CHECKING:

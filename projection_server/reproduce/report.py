@@ -17,7 +17,7 @@ import numpy as np
 from projection_server.reproduce.experiments import compare
 from projection_server.reproduce.explain import explain
 from projection_server.reproduce.fidelity import converged
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ProjectionError
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Mapping, Sequence
@@ -216,7 +216,7 @@ def pca_png(exp: Experiment, runs: Sequence[Run], path: str | Path) -> Path:
     import matplotlib.pyplot as plt
 
     from projection_server.timeline import pouring
-    from projection_server.timeline.translate import translate_bag
+    from projection_server.workers.run import translate_bag
 
     from matplotlib.patches import Circle
 

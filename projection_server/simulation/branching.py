@@ -27,9 +27,8 @@ import signal
 import traceback
 from typing import Any, Callable, TYPE_CHECKING
 
-from projection_server.bags import BagWriter, TOPICS, typestore
-from projection_server.simulation.errors import ProjectionError
-from projection_server.simulation.monitor import Record
+from projection_server.bags import BagWriter, Record, TOPICS, typestore
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.runner import Projection, projection_info
 
 if TYPE_CHECKING:
@@ -37,11 +36,12 @@ if TYPE_CHECKING:
     from pathlib import Path
 
     from projection_server.simulation.job import Job
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
 
 __all__ = ['Report', 'die_with_parent', 'run_tree', 'start_tree']
 
-# report(index, timeline or ProjectionError, ok): once per leaf, from the leaf's process.
+# report(index, the finished Projection or a ProjectionError, ok): once per leaf, from the
+# leaf's process (which makes the timeline of a finished one, its records in memory).
 Report = Callable[[int, Any, bool], None]
 _PR_SET_PDEATHSIG = 1
 
@@ -126,8 +126,6 @@ def _grow(projection: Projection, log: _SharedLog, group: list[tuple[int, tuple[
 
 def _leaf(projection: Projection, log: _SharedLog, member: tuple[int, tuple[Job, Path]],
           settings: Settings, report: Report) -> None:
-    from projection_server.timeline.translate import translate_records
-
     index, (job, path) = member
     monitor = projection.monitor
     shared = log.calls
@@ -140,12 +138,12 @@ def _leaf(projection: Projection, log: _SharedLog, member: tuple[int, tuple[Job,
         monitor.bag = bag
         monitor.records[0] = Record('info', 0, info)
         projection.advance()
-    report(index, translate_records(monitor.records, path), True)
+    report(index, projection, True)
 
 
 def _fail(group: list[tuple[int, tuple[Job, Path]]], exc: Exception, report: Report) -> int:
     if not isinstance(exc, ProjectionError):
-        exc = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}\n'
+        exc = ProjectionError(ErrorKind.SIMULATION_FAILED, f'{type(exc).__name__}: {exc}\n'
                                                    f'{traceback.format_exc(limit=8)}')
     for index, _ in group:
         report(index, exc, False)

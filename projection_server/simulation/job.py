@@ -10,23 +10,16 @@ from pathlib import Path
 import threading
 from typing import Any, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.canonical import canonical_json
+from projection_server.errors import ProjectionError
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
-from projection_server.simulation.settings import check_physics
+from projection_server.settings import check_physics
 
 if TYPE_CHECKING:
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
 
-__all__ = ['Job', 'canonical_json', 'code_version']
-
-
-def canonical_json(value: Any) -> str:
-    """JSON with sorted keys and no whitespace: equal values give equal text."""
-    try:
-        return json.dumps(value, sort_keys=True, separators=(',', ':'), allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise ProjectionError('invalid_scenario', f'not plain JSON data: {exc}') from exc
+__all__ = ['Job', 'code_version']
 
 
 @functools.cache
@@ -42,7 +35,8 @@ def code_version() -> str:
         version = '0+source'
     package = Path(__file__).resolve().parents[1]
     digest = hashlib.sha256()
-    files = sorted([*(package / 'simulation').rglob('*'), package / 'bags.py'])
+    files = sorted([*(package / 'simulation').rglob('*'), *(package / 'bags').rglob('*'),
+                    package / 'settings.py', package / 'canonical.py'])
     for path in files:
         if path.is_file() and path.suffix in {'.py', '.urdf', '.yaml'}:
             digest.update(path.relative_to(package).as_posix().encode())
@@ -61,7 +55,7 @@ _VALID_LOCK = threading.Lock()
 @dataclass(frozen=True, eq=False)
 class Job:
     """One projection: a scenario description, a program name, its parameter values and the
-    physics settings the query chose (:data:`~projection_server.simulation.settings.
+    physics settings the query chose (:data:`~projection_server.settings.
     PHYSICS_OPTIONS`; the others come from the settings file).
 
     Construct with :meth:`checked`, which validates everything that can be checked without a

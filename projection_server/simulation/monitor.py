@@ -16,41 +16,21 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, NamedTuple, TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.bags import CdrTemplate, TOPICS, typestore
+from projection_server.bags import CdrTemplate, PARTICLES_NS, Record, TOPICS, typestore
 from projection_server.simulation.physics import ContactSample, Shape
 
 if TYPE_CHECKING:
     from projection_server.bags import BagWriter
     from projection_server.simulation.physics import Body, Physics
 
-__all__ = ['ContactAggregator', 'Monitor', 'PARTICLES_NS', 'Record', 'WORLD_FRAME']
+__all__ = ['ContactAggregator', 'Monitor', 'WORLD_FRAME']
 
 WORLD_FRAME = 'world'
-PARTICLES_NS = 'particles'
 _MSG = 'projection_interfaces/msg/'
-
-
-class Record(NamedTuple):
-    """What the monitor logged on one topic at one time, as plain data (the timeline is
-    made from these, :func:`projection_server.timeline.translate.translate_records`).
-
-    ``kind`` and ``data``:
-
-    * ``info``: the ``ProjectionInfo`` message;
-    * ``tf_static``, ``tf``: ``[(parent frame, child frame, (x, y, z), (x, y, z, w)), ...]``;
-    * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal z), ...]``;
-    * ``gripper``: ``(name, command, finger links)``;
-    * ``objects``: ``[(name, load, load limit, broken), ...]``;
-    * ``particles``: ``{fluid: positions (n, 3)}``.
-    """
-
-    kind: str
-    t_ns: int
-    data: Any
 
 
 class Monitor:

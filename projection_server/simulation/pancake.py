@@ -44,7 +44,8 @@ from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.bags import REFERENCE_LINKS
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.physics import Body, Shape
 
 if TYPE_CHECKING:
@@ -54,7 +55,6 @@ if TYPE_CHECKING:
 __all__ = ['MAX_SEGMENTS', 'PancakeSprings', 'REFERENCE_LINKS', 'Segment', 'build_pancake',
            'particles_layout', 'rings_layout']
 
-REFERENCE_LINKS = ('rim_a', 'rim_b')
 COLOR = (0.85, 0.65, 0.3, 1.0)
 SELF_GROUP = 0x100        # collision group bit of pancake segments (they skip each other;
 #                           Bullet uses 1 and 2 for dynamic and static bodies)
@@ -119,12 +119,12 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
     parents = [-1] * n
     for parent, child in joints:
         if not 0 <= parent < child < n or parents[child] != -1:
-            raise ProjectionError('invalid_scenario',
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                                   f'pancake joints must form a tree with parent < child, '
                                   f'got {[parent, child]}')
         parents[child] = parent
     if n == 0 or any(p == -1 for p in parents[1:]):
-        raise ProjectionError('invalid_scenario', 'every pancake particle but the seed '
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO, 'every pancake particle but the seed '
                                                   'needs a parent joint')
     head = list(range(n))             # each particle's segment, named by its first particle
     while len(set(head)) > max_segments:
@@ -169,11 +169,11 @@ def build_pancake(physics: Physics, entity: Entity) -> None:
                                 int(p['segment_count']))
     elif p['model'] == 'particles':
         if p.get('particles') is None or p.get('joints') is None:
-            raise ProjectionError('invalid_scenario',
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                                   f'{entity.name}: model "particles" needs particles and joints')
         segments = particles_layout(p['particles'], p['joints'], p['thickness'])
     else:
-        raise ProjectionError('invalid_scenario',
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{entity.name}: unknown pancake model {p["model"]!r}')
     total = sum(s.area for s in segments)
     masses = [p['mass'] * s.area / total for s in segments]

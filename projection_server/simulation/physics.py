@@ -14,10 +14,10 @@ from typing import Any, Callable, Protocol, TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 
 if TYPE_CHECKING:
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
 
 __all__ = [
     'Body',
@@ -289,7 +289,7 @@ class Physics:
     # --- registry -----------------------------------------------------------------------
     def add_body(self, body: Body) -> Body:
         if body.name in self.bodies:
-            raise ProjectionError('invalid_scenario', f'body {body.name!r} exists already')
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'body {body.name!r} exists already')
         self.bodies[body.name] = body
         self._names[body.body_id] = body.group or body.name
         self.shapes_changed = True
@@ -300,7 +300,7 @@ class Physics:
     def add_fluid(self, fluid: Fluid) -> Fluid:
         """Register a fluid whose particles are bodies added with ``group`` = its name."""
         if fluid.name in self.bodies or fluid.name in self.fluids:
-            raise ProjectionError('invalid_scenario', f'body {fluid.name!r} exists already')
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'body {fluid.name!r} exists already')
         self.fluids[fluid.name] = fluid
         self.bodies_version += 1
         self._step_contacts = {}
@@ -323,7 +323,7 @@ class Physics:
         try:
             return self.bodies[name]
         except KeyError:
-            raise ProjectionError('invalid_scenario', f'no body named {name!r}') from None
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'no body named {name!r}') from None
 
     def name_of(self, body_id: int) -> str | None:
         return self._names.get(body_id)
@@ -393,7 +393,7 @@ class Physics:
         for model in self.models:
             if model.name == name:
                 return model.load
-        raise ProjectionError('invalid_scenario', f'{name!r} has no object model')
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'{name!r} has no object model')
 
     def particle_positions(self, fluid: str) -> np.ndarray:
         """World positions of a fluid's particles, shape (n, 3) [m]."""

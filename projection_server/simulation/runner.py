@@ -1,10 +1,10 @@
-"""One projection, start to end, in the calling process: world, program, monitoring, bag,
-and the timeline made from the samples in memory.
+"""One projection, start to end, in the calling process: world, program, monitoring, bag.
 
 A :class:`Simulator` keeps one DIRECT-mode PyBullet client for many projections (what a
 pool worker does, :mod:`projection_server.workers.process`); each projection still
-builds a fresh world in it and sets every engine parameter it depends on. The function
-:func:`run_projection` is one projection with a client of its own, e.g. from a debugger.
+builds a fresh world in it and sets every engine parameter it depends on. A finished
+:class:`Projection` keeps what its monitor logged (``monitor.records``), from which the
+worker makes its timeline (:mod:`projection_server.workers.run`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from projection_server.bags import BagWriter
-from projection_server.simulation.job import canonical_json, code_version
+from projection_server.canonical import canonical_json
+from projection_server.simulation.job import code_version
 from projection_server.simulation.monitor import Monitor
 from projection_server.simulation.physics import bound_client
 from projection_server.simulation.programs import get as get_program
@@ -26,9 +27,9 @@ if TYPE_CHECKING:
     from pathlib import Path
 
     from projection_server.simulation.job import Job
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
 
-__all__ = ['Projection', 'Simulator', 'projection_info', 'run_projection']
+__all__ = ['Projection', 'Simulator', 'projection_info']
 
 
 class Simulator:
@@ -38,26 +39,23 @@ class Simulator:
         import pybullet
 
         from projection_server.bags import typestore
-        from projection_server.timeline import translate   # noqa: F401 (imported once here)
 
         typestore()   # message types are registered once per process
         self.client = bound_client(pybullet.DIRECT)
 
-    def run(self, job: Job, settings: Settings, bag_path: Path) -> dict[str, Any]:
+    def run(self, job: Job, settings: Settings, bag_path: Path) -> Projection:
         """Simulate ``job`` in a fresh world, log it into a new bag at ``bag_path`` and
-        return its timeline (``translate_bag(bag_path)`` gives the same).
+        return the finished projection (its records are what the bag holds).
 
         The control program runs every ``steps_per_control`` physics steps and the monitor
         samples every ``steps_per_log`` steps, from the first step until the program's
         duration, or until the first sample after which the task says it has ``finished``
         (a task may end when what it set in motion has come to rest).
         """
-        from projection_server.timeline.translate import translate_records
-
         with BagWriter(bag_path) as bag:
             projection = Projection(self.client, job, settings, bag)
             projection.advance()
-        return translate_records(projection.monitor.records, bag_path)
+        return projection
 
     def close(self) -> None:
         self.client.disconnect()
@@ -107,12 +105,3 @@ def projection_info(job: Job, settings: Settings, scenario_name: str) -> dict[st
             'parameters_json': canonical_json(job.params),
             'settings_json': canonical_json(job.settings(settings).to_dict()),
             'code_version': code_version()}
-
-
-def run_projection(job: Job, settings: Settings, bag_path: Path) -> dict[str, Any]:
-    """:meth:`Simulator.run` with a PyBullet client of its own."""
-    simulator = Simulator()
-    try:
-        return simulator.run(job, settings, bag_path)
-    finally:
-        simulator.close()

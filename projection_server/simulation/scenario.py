@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import math
 from typing import Any, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Mapping
@@ -315,4 +315,4 @@ def _is_number(value: Any) -> bool:
 
 
 def _fail(message: str):
-    raise ProjectionError('invalid_scenario', message)
+    raise ProjectionError(ErrorKind.INVALID_SCENARIO, message)

@@ -41,7 +41,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.object_models import EggShell
 from projection_server.simulation.pancake import build_pancake
 from projection_server.simulation.physics import (
@@ -49,7 +49,7 @@ from projection_server.simulation.physics import (
 
 if TYPE_CHECKING:
     from projection_server.simulation.scenario import Entity, Scenario
-    from projection_server.simulation.settings import PhysicsSettings, Settings
+    from projection_server.settings import PhysicsSettings, Settings
 
 __all__ = ['assets_dir', 'build_world', 'ellipsoid_vertices', 'settle']
 
@@ -220,7 +220,7 @@ def _build_robot(physics: Physics, entity: Entity, gripper: Entity | None = None
                      float(spec['pad_stiffness']), float(spec['pad_rim_radius']))
                 for pad in spec['pads']]
     except KeyError as exc:
-        raise ProjectionError('invalid_scenario',
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'gripper asset {spec["urdf"]}: unknown name {exc}') from exc
     link_shapes: dict[int, list[tuple[Shape, tuple[float, float, float]]]] = {}
     for box in boxes.values():
@@ -249,7 +249,7 @@ def _gripper_spec(name: str) -> dict[str, Any]:
 
     path = assets_dir() / f'{name}.yaml'
     if not path.is_file():
-        raise ProjectionError('invalid_scenario', f'unknown gripper {name!r} (no {path.name})')
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'unknown gripper {name!r} (no {path.name})')
     return yaml.safe_load(path.read_text())
 
 
@@ -368,7 +368,7 @@ def _build_cup(physics: Physics, entity: Entity) -> None:
     c, p = physics.client, entity.properties
     radius, height, wall = p['radius'], p['height'], p['wall_thickness']
     if wall >= radius or wall >= height:
-        raise ProjectionError('invalid_scenario',
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{entity.name}: wall_thickness must be below radius and height')
     half_angle = math.pi / CUP_SEGMENTS
     mid = radius - wall / 2
@@ -411,7 +411,7 @@ def _build_particle_fluid(physics: Physics, entity: Entity) -> None:
     container = p.get('container')
     if container is not None:
         if container not in physics.containers:
-            raise ProjectionError('invalid_scenario',
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                                   f'{entity.name}: container {container!r} is not built '
                                   'before it or is not a container')
         positions = _container_filling(physics, container, count, radius)
@@ -457,7 +457,7 @@ def _container_filling(physics: Physics, name: str, count: int,
             if x * x + y * y <= reach * reach:
                 layer.append((x, y))
     if not layer:
-        raise ProjectionError('invalid_scenario', f'particles do not fit into {name!r}')
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'particles do not fit into {name!r}')
     position, orientation = physics.pose(name)
     rot = np.asarray(physics.client.getMatrixFromQuaternion(orientation)).reshape(3, 3)
     out = []

@@ -1,6 +1,9 @@
-"""Translation of a projection bag into a timeline of fluents, events and quantities.
+"""Translation of a projection's records into a timeline of fluents, events and quantities.
 
-``translate_bag(path)`` returns the dict of ``docs/contracts.md``. Every monitoring sample
+``translate_records(records, bag, scenario)`` returns the dict of ``docs/contracts.md``,
+from what the monitor logged (:class:`~projection_server.bags.Record` s, the worker's own
+or read back from a bag: :func:`projection_server.workers.run.translate_bag`) and the
+projection's checked scenario. Every monitoring sample
 (one ``ContactArray``, ``/tf``, ``GripperState`` and ``ObjectStateArray`` per step) gives a
 truth value of each fluent; fluents hold on maximal intervals of true samples, with gaps
 shorter than ``timeline.gap_merge`` merged; events are read off those intervals. The
@@ -67,25 +70,18 @@ from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.bags import read_bag, TOPICS
-from projection_server.simulation.errors import ProjectionError
-from projection_server.simulation.monitor import PARTICLES_NS, Record
-from projection_server.simulation.pancake import REFERENCE_LINKS
-from projection_server.simulation.scenario import parse_scenario
-from projection_server.simulation.settings import TimelineSettings
+from projection_server.bags.schema import REFERENCE_LINKS
+from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.settings import TimelineSettings
 from projection_server.timeline import pouring, turning
 from projection_server.timeline.intervals import fluent_intervals, holds_at, Interval
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Iterator
 
-__all__ = ['translate_bag', 'translate_messages', 'translate_records']
+    from projection_server.bags.schema import Record
 
-_TOPICS = [TOPICS[name] for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
-                                     'objects', 'markers')]
-_KINDS = {TOPICS[name]: name for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
-                                          'objects')}
-
+__all__ = ['translate_records']
 
 class _Gripper(NamedTuple):
     command: str
@@ -112,34 +108,13 @@ class _Sample:
     particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
 
 
-def translate_bag(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """The timeline of the projection logged in the bag at ``path``.
-
-    For logs on disk; a worker makes the timeline of its own projection from the messages
-    it has in memory (:func:`translate_messages`), with the same result.
-
-    Raises:
-        ProjectionError: kind ``bag_error`` if the bag cannot be read or is not a projection.
-    """
-    return translate_messages(read_bag(path, _TOPICS), path)
-
-
-def translate_messages(messages: Iterable[tuple[str, int, Any]],
-                       bag: str | os.PathLike[str]) -> dict[str, Any]:
-    """The timeline of a projection from its bag messages ``(topic, t_ns, message)`` in the
-    order they were written; ``bag`` is the bag's path, recorded in the timeline's meta.
-
-    Raises:
-        ProjectionError: kind ``bag_error`` if the messages are not a projection's.
-    """
-    return translate_records(_records(messages), bag)
-
-
-def translate_records(records: Iterable[Record], bag: str | os.PathLike[str]
-                      ) -> dict[str, Any]:
+def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
+                      scenario: Any) -> dict[str, Any]:
     """The timeline of a projection from what its monitor logged, as plain
-    :class:`~projection_server.simulation.monitor.Record` s (a worker's own projection:
-    the same timeline as its bag's); ``bag`` is the bag's path.
+    :class:`~projection_server.bags.Record` s (a worker's own projection: the same
+    timeline as its bag's); ``bag`` is the bag's path, ``scenario`` the projection's
+    checked scenario (its ``entities``, each with ``name``, ``cls``, ``pose`` and
+    ``properties``).
 
     Raises:
         ProjectionError: kind ``bag_error`` if the records are not a projection's.
@@ -150,7 +125,7 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str]
     info, samples_ = samples.finish(bag)
     settings_json = json.loads(info.settings_json)
     timeline = _Timeline(samples_, TimelineSettings(**settings_json['timeline']))
-    fluids = _Fluids(samples_, info.scenario_json)
+    fluids = _Fluids(samples_, scenario)
     return {
         'fluents': timeline.fluents(),
         'events': _sorted_events(timeline.events() + fluids.events()),
@@ -164,35 +139,6 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str]
             'timeline_settings': settings_json['timeline'],
         },
     }
-
-
-def _records(messages: Iterable[tuple[str, int, Any]]) -> Iterator[Record]:
-    """The monitor's records of the messages of a bag."""
-    for topic, t_ns, msg in messages:
-        kind = _KINDS.get(topic)
-        if kind in ('tf', 'tf_static'):
-            yield Record(kind, t_ns, [
-                (tr.header.frame_id, tr.child_frame_id,
-                 (tr.transform.translation.x, tr.transform.translation.y,
-                  tr.transform.translation.z),
-                 (tr.transform.rotation.x, tr.transform.rotation.y, tr.transform.rotation.z,
-                  tr.transform.rotation.w)) for tr in msg.transforms])
-        elif kind == 'contacts':
-            yield Record(kind, t_ns, [(c.body_a, c.link_a, c.body_b, c.link_b, c.normal_force,
-                                       c.normal.z) for c in msg.contacts])
-        elif kind == 'gripper':
-            yield Record(kind, t_ns, (msg.name, msg.command, msg.finger_links))
-        elif kind == 'objects':
-            yield Record(kind, t_ns, [(o.name, o.load, o.load_limit, o.broken)
-                                      for o in msg.objects])
-        elif kind == 'info':
-            yield Record(kind, t_ns, msg)
-        elif topic == TOPICS['markers']:   # only the particles
-            particles = {marker.text: np.array([(q.x, q.y, q.z) for q in marker.points],
-                                               dtype=float).reshape(-1, 3)
-                         for marker in msg.markers if marker.ns == PARTICLES_NS}
-            if particles:
-                yield Record('particles', t_ns, particles)
 
 
 class _Samples:
@@ -230,7 +176,7 @@ class _Samples:
 
     def finish(self, bag: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
         if self.info is None:
-            raise ProjectionError('bag_error', f'{bag}: no {TOPICS["info"]} message')
+            raise ProjectionError(ErrorKind.BAG_ERROR, f'{bag}: no projection info')
         for t_ns, fluids in self.particles.items():
             if t_ns in self.by_time:
                 self.by_time[t_ns].particles = fluids
@@ -366,7 +312,7 @@ def _composed(entry: list[Any]) -> tuple[np.ndarray, np.ndarray]:
 
 def _upside_down(sample: _Sample, body: str, references: list[str]) -> bool:
     """Whether the segments of ``body`` (its frame and link frames ``body/...``, with the
-    reference links of :data:`~projection_server.simulation.pancake.REFERENCE_LINKS`, whose
+    reference links of :data:`~projection_server.bags.REFERENCE_LINKS`, whose
     frames are ``references``) are upside down; False for bodies without them."""
     a, b = (sample.poses.get(name) for name in references)
     if a is None or b is None or body not in sample.poses:
@@ -611,7 +557,7 @@ class _Timeline:
 class _Fluids:
     """Events and quantities of the particle fluids of a projection (none without fluids)."""
 
-    def __init__(self, samples: list[_Sample], scenario_json: str):
+    def __init__(self, samples: list[_Sample], scenario: Any):
         self.samples = [x for x in samples if x.particles]
         self.radius: dict[str, float] = {}
         self.makers: dict[str, pouring.Disc] = {}
@@ -619,7 +565,6 @@ class _Fluids:
         tables = []
         if not self.samples:
             return
-        scenario = parse_scenario(json.loads(scenario_json))
         for entity in scenario.entities:
             p, (x, y, z) = entity.properties, entity.pose.xyz
             if entity.cls == 'particle_fluid':

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Any, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.workers.backend import ProjectionResult, WorkerBackend
 from projection_server.workers.bag_store import BagStore, Retention
 
@@ -44,5 +44,5 @@ def create_backend(name: str, bag_dir: str | os.PathLike[str], workers: int,
         from projection_server.workers.ray import RayBackend
 
         return RayBackend(bag_dir, workers=workers, **options)
-    raise ProjectionError('invalid_settings',
+    raise ProjectionError(ErrorKind.INVALID_SETTINGS,
                           f'unknown projection backend {name!r} (known: {", ".join(BACKENDS)})')

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from pathlib import Path
 
     from projection_server.simulation.job import Job
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
 
 __all__ = ['ProjectionResult', 'WorkerBackend']
 

@@ -24,7 +24,7 @@ import tempfile
 import threading
 from typing import Any, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -55,7 +55,7 @@ class Retention:
         try:
             return cls(**dict(value))
         except TypeError as exc:
-            raise ProjectionError('invalid_settings', f'retention: {exc}') from exc
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'retention: {exc}') from exc
 
     def exceeded(self, count: int, total: int) -> bool:
         """Whether ``count`` bags of ``total`` bytes are more than this policy keeps."""

@@ -14,8 +14,8 @@ import math
 import threading
 from typing import Any, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
-from projection_server.simulation.settings import load_settings
+from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.settings import load_settings
 from projection_server.workers.bag_store import BagStore
 from projection_server.workers.requests import check_timeout, Requests
 
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     import os
 
     from projection_server.simulation.job import Job
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
     from projection_server.workers.backend import ProjectionResult
     from projection_server.workers.bag_store import Retention
     from projection_server.workers.requests import Request
@@ -41,7 +41,7 @@ class BackendBase(ABC):
                  settings: Settings | None, retention: Retention | Mapping[str, Any] | None,
                  startup_timeout: float, max_projections: int):
         if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-            raise ProjectionError('invalid_settings', f'workers must be >= 1, got {workers!r}')
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'workers must be >= 1, got {workers!r}')
         self.store = BagStore(bag_dir, retention)
         self.bag_dir = self.store.bag_dir
         self.settings = settings if settings is not None else load_settings()
@@ -82,7 +82,7 @@ class BackendBase(ABC):
         futures = []
         with self._lock:
             if self._closed:
-                raise ProjectionError('pool_closed', 'the projection backend is closed')
+                raise ProjectionError(ErrorKind.POOL_CLOSED, 'the projection backend is closed')
             for job, key in zip(jobs, keys):
                 request, new = self._requests.add(job, key, timeout, owner)
                 if new:
@@ -113,7 +113,7 @@ class BackendBase(ABC):
                 cancelled += 1
                 if not self._stop(request):   # queued: fails now; else when its worker ends
                     self._requests.fail(request, ProjectionError(
-                        'cancelled', f'projection {request.key[:12]} was cancelled'))
+                        ErrorKind.CANCELLED, f'projection {request.key[:12]} was cancelled'))
         return cancelled
 
     def _droppable(self, request: Request) -> bool:

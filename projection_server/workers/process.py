@@ -9,7 +9,7 @@ connection, message type registration and asset parsing, and a throw-away projec
 what only a first projection sets up (:mod:`projection_server.workers.warm_up`); the ready
 message says how long that took. A ``project`` command is answered with
 ``(result, ok)``; a projection's result is its timeline, made from the samples the worker
-has in memory (:mod:`projection_server.timeline.translate`). A ``tree`` command (projections
+has in memory (:mod:`projection_server.workers.run`). A ``tree`` command (projections
 that share their first steps, :mod:`projection_server.simulation.branching`) is answered
 with ``(index, result, ok)`` for each projection as it ends, then ``(None, complete, True)``,
 where ``complete`` is False if a process of the tree crashed before it reported. While a tree
@@ -24,7 +24,7 @@ from pathlib import Path
 import traceback
 from typing import Any
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 
 __all__ = ['main', 'worker_main']
 
@@ -41,13 +41,14 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
     os.dup2(devnull, 1)
     os.close(devnull)
     try:
+        from projection_server.settings import Settings
         from projection_server.simulation.runner import Simulator
-        from projection_server.simulation.settings import Settings
+        from projection_server.workers import run   # noqa: F401 (the timeline, imported once)
 
         parsed = Settings.from_dict(settings)
         simulator = Simulator()
     except Exception as exc:
-        conn.send((ProjectionError('simulation_failed', f'worker start-up: {exc}'), False))
+        conn.send((ProjectionError(ErrorKind.SIMULATION_FAILED, f'worker start-up: {exc}'), False))
         return
     try:
         from projection_server.workers.warm_up import warm_up
@@ -69,13 +70,15 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
 
 
 def _project(simulator: Any, payload: tuple[Any, str], settings: Any) -> tuple[Any, bool]:
+    from projection_server.workers.run import project
+
     try:
         job, path = payload
-        return simulator.run(job, settings, Path(path)), True
+        return project(simulator, job, settings, Path(path)), True
     except ProjectionError as exc:
         return exc, False
     except Exception as exc:
-        return ProjectionError('simulation_failed',
+        return ProjectionError(ErrorKind.SIMULATION_FAILED,
                                f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'
                                ), False
 
@@ -88,6 +91,7 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
     import signal
 
     from projection_server.simulation.branching import start_tree
+    from projection_server.workers.run import timeline_of
 
     leaves = [(job, Path(path)) for job, path in payload]
     reader, writer = os.pipe()
@@ -96,6 +100,8 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
         return leaves[index][1].with_name(leaves[index][1].name + '.result')
 
     def report(index: int, result: Any, ok: bool) -> None:   # in the leaf's process
+        if ok:   # the finished projection: its timeline, from the records it has in memory
+            result = timeline_of(result, leaves[index][1])
         ended(index).write_bytes(pickle.dumps((result, ok)))
         os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 

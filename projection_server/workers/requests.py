@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from projection_server.workers.backend import ProjectionResult
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 
 if TYPE_CHECKING:
     from projection_server.simulation.job import Job
@@ -34,7 +34,7 @@ def check_timeout(timeout: object) -> None:
         ProjectionError: kind ``invalid_parameters``.
     """
     if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or timeout <= 0:
-        raise ProjectionError('invalid_parameters', f'timeout must be > 0 s: {timeout!r}')
+        raise ProjectionError(ErrorKind.INVALID_PARAMETERS, f'timeout must be > 0 s: {timeout!r}')
 
 
 @dataclass

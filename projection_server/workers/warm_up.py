@@ -20,7 +20,7 @@ from projection_server.workers.bag_store import private_tmp_dir
 
 if TYPE_CHECKING:
     from projection_server.simulation.runner import Simulator
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
 
 __all__ = ['WARM_UP_FILE', 'warm_up', 'warm_up_job']
 
@@ -48,8 +48,9 @@ def warm_up(simulator: Simulator, settings: Settings) -> dict[str, Any]:
     start = time.perf_counter()
     tmp = private_tmp_dir('projection-warm-up-')
     try:
-        job = warm_up_job()
-        simulator.run(job, settings, tmp / 'bag')
+        from projection_server.workers.run import project
+
+        project(simulator, warm_up_job(), settings, tmp / 'bag')
     except Exception as exc:  # noqa: BLE001 - reported, the worker serves regardless
         return {'seconds': time.perf_counter() - start,
                 'error': f'{type(exc).__name__}: {exc}'}

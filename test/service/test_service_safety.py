@@ -322,7 +322,7 @@ def test_finish_stops_a_running_projection_query_within_a_second(call, node):
 
 
 def test_a_bag_dir_under_a_regular_file_stops_the_node_with_a_clear_message(tmp_path):
-    from projection_server.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command, NodeProcess
     blocker = tmp_path / 'file'
     blocker.write_text('not a directory')
     log = tmp_path / 'node.log'

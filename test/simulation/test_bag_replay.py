@@ -11,7 +11,7 @@ from rosbags.interfaces import QosDurability, QosReliability
 
 from projection_server.bags import read_bag, typestore
 from projection_server.simulation import Job
-from projection_server.timeline.translate import translate_bag
+from projection_server.workers.run import translate_bag
 
 FINGERS = ('pr2_robot/l_finger', 'pr2_robot/r_finger')
 

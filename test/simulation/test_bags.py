@@ -42,6 +42,20 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
     assert info.value.kind == 'bag_error'
 
 
+def test_the_writer_built_on_rosbags_internals_is_pinned_to_the_installed_rosbags():
+    """bags/mcap.py subclasses rosbags' private writer internals of one release. Another
+    rosbags falls back to rosbags' own writer; this test makes the change loud, so that
+    mcap.py is checked against the new release (the byte tests below) and its pin moved."""
+    from importlib.metadata import version
+
+    from projection_server.bags.mcap import ROSBAGS_VERSION, writer_class
+
+    assert version('rosbags') == ROSBAGS_VERSION, (
+        f'rosbags {version("rosbags")} is installed, bags/mcap.py was written against '
+        f'{ROSBAGS_VERSION}: check its subclasses against the new release')
+    assert writer_class().__name__ == '_Writer'
+
+
 def test_reading_a_missing_bag_is_a_bag_error(tmp_path):
     with pytest.raises(ProjectionError) as info:
         list(read_bag(tmp_path / 'nothing'))
@@ -144,7 +158,8 @@ def test_a_bags_files_are_those_rosbags_writes(tmp_path, name):
     that YAML would quote is left to rosbags)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from projection_server.bags import _definition, offered_qos
+    from projection_server.bags import offered_qos
+    from projection_server.bags.cdr import definition
 
     store = typestore()
     messages = []
@@ -167,7 +182,7 @@ def test_a_bags_files_are_those_rosbags_writes(tmp_path, name):
                     topic, message.__msgtype__, typestore=store,
                     offered_qos_profiles=[offered_qos(topic)])
             bag.write(connections[topic], t, store.serialize_cdr(message, message.__msgtype__))
-    assert _definition('projection_interfaces/msg/ObjectStateArray')[1].startswith('RIHS01_')
+    assert definition('projection_interfaces/msg/ObjectStateArray')[1].startswith('RIHS01_')
     metadata = (ours / 'metadata.yaml').read_text()
     assert metadata == (theirs / 'metadata.yaml').read_text()
     assert 'message_count: 6' in metadata and 'nanoseconds_since_epoch: 7' in metadata
@@ -235,8 +250,8 @@ def test_a_projections_bag_holds_rosbags_bytes_and_its_timeline(tmp_path, make_s
     the bag translates to the timeline the projection made from its samples in memory."""
     from projection_server.simulation import load_settings
     from projection_server.simulation.job import Job
-    from projection_server.simulation.runner import run_projection
-    from projection_server.timeline.translate import translate_bag
+    from projection_server.workers.run import run_projection
+    from projection_server.workers.run import translate_bag
 
     from rosbags.highlevel import AnyReader
 

@@ -20,6 +20,7 @@ from projection_server.simulation.branching import run_tree, start_tree
 from projection_server.simulation.runner import Simulator
 from projection_server.workers.bag_store import BagStore
 from projection_server.workers.local import WorkerPool
+from projection_server.workers.run import project
 
 # The pouring scenario with a small batter: forty particles pour in well under a second.
 SMALL = yaml.safe_load((Path(__file__).parent / 'pouring.yaml').read_text())
@@ -49,7 +50,7 @@ def straight(tmp_path_factory):
         for job in jobs():
             key = job.key(settings)
             bag = tmp_path_factory.mktemp('straight') / BagStore.name(job, key)
-            runs[key] = files_of(bag, simulator.run(job, settings, bag))
+            runs[key] = files_of(bag, project(simulator, job, settings, bag))
     finally:
         simulator.close()
     return runs

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from projection_server.simulation import Job
-from projection_server.simulation.runner import run_projection
-from projection_server.timeline.translate import translate_bag
+from projection_server.workers.run import run_projection
+from projection_server.workers.run import translate_bag
 
 
 @pytest.fixture(scope='module')

@@ -10,7 +10,7 @@ import time
 import pytest
 
 from projection_server.simulation import Job, ProjectionError
-from projection_server.timeline.translate import translate_bag
+from projection_server.workers.run import translate_bag
 from projection_server.workers import Retention, WorkerBackend
 
 
@@ -87,7 +87,7 @@ def test_worker_errors_come_back_as_projection_errors(pool, make_scenario):
 
 def test_a_bag_does_not_depend_on_earlier_projections_of_its_worker(
         pool, make_scenario, tmp_path):
-    from projection_server.simulation.runner import run_projection
+    from projection_server.workers.run import run_projection
 
     pool.run(job(make_scenario, 9.0, 0.02), timeout=60.0)   # leaves a broken egg behind
     pid = pool.worker_pids[0]
@@ -123,7 +123,8 @@ def test_a_worker_that_cannot_warm_up_says_why_instead_of_failing(monkeypatch, m
 
 def test_engine_parameters_left_by_anything_before_do_not_reach_a_projection(
         make_scenario, pool, tmp_path):
-    from projection_server.simulation.runner import run_projection, Simulator
+    from projection_server.simulation.runner import Simulator
+    from projection_server.workers.run import project, run_projection
 
     grasp = job(make_scenario, 7.0, -0.02)
     fresh = run_projection(grasp, pool.settings, tmp_path / 'fresh' / 'bag')
@@ -133,7 +134,7 @@ def test_engine_parameters_left_by_anything_before_do_not_reach_a_projection(
         simulator.client.setPhysicsEngineParameter(
             fixedTimeStep=0.01, numSubSteps=3, numSolverIterations=7,
             contactBreakingThreshold=0.05)
-        warm = simulator.run(grasp, pool.settings, tmp_path / 'warm' / 'bag')
+        warm = project(simulator, grasp, pool.settings, tmp_path / 'warm' / 'bag')
     finally:
         simulator.close()
     assert (tmp_path / 'warm' / 'bag' / 'bag.mcap').read_bytes() == (

@@ -15,7 +15,7 @@ from projection_server.simulation import Job, ProjectionError
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.timeline import pouring
-from projection_server.timeline.translate import translate_bag
+from projection_server.workers.run import translate_bag
 
 POURING = yaml.safe_load((Path(__file__).parent / 'pouring.yaml').read_text())
 COUNT = 300
@@ -168,7 +168,7 @@ def _cup_tilts(rate_hz, angle=1.99, hold=0.0, count=10):
     and the simulated seconds at which the pour said it had finished (None: never)."""
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
-    from projection_server.simulation.settings import load_settings
+    from projection_server.settings import load_settings
     from projection_server.simulation.world import build_world
 
     scenario = copy.deepcopy(POURING)
@@ -250,7 +250,7 @@ def test_the_contacts_of_a_pour_are_those_of_all_points_without_particle_pairs()
     # particle-particle points of each sample; the samples must be the same.
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
-    from projection_server.simulation.settings import load_settings
+    from projection_server.settings import load_settings
     from projection_server.simulation.world import build_world
 
     client = BulletClient(connection_mode=pybullet.DIRECT)

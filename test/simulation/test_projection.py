@@ -7,7 +7,7 @@ import pytest
 
 from projection_server import projection
 from projection_server.simulation import ProjectionError
-from projection_server.timeline.translate import translate_bag
+from projection_server.workers.run import translate_bag
 
 
 @pytest.fixture
@@ -30,13 +30,13 @@ def test_simulate_returns_a_bag_that_translates_to_a_timeline(bag_dir, make_scen
 
 def test_the_timeline_comes_from_the_worker_once_and_then_from_the_bag(
         bag_dir, make_scenario, monkeypatch):
-    from projection_server.timeline import translate
+    from projection_server.workers import run
 
     path = projection.simulate(make_scenario(), 'grasp_object',
                                {'force': 11, 'position': 0.0}, 60.0)
     reads = []
-    monkeypatch.setattr(translate, 'read_bag',
-                        lambda *a: reads.append(a) or _read_bag(*a))
+    monkeypatch.setattr(run, 'read_records',
+                        lambda *a: reads.append(a) or _read_records(*a))
     made = projection.timeline(path)
     assert reads == []
     again = projection.timeline(path)
@@ -44,10 +44,10 @@ def test_the_timeline_comes_from_the_worker_once_and_then_from_the_bag(
     assert made == again
 
 
-def _read_bag(*args):
-    from projection_server.bags import read_bag
+def _read_records(*args):
+    from projection_server.bags import read_records
 
-    return read_bag(*args)
+    return read_records(*args)
 
 
 def test_simulate_rejects_bad_input_before_starting_a_worker(bag_dir, make_scenario):

@@ -7,8 +7,9 @@ import hashlib
 import pytest
 
 from projection_server.simulation import Job, load_settings, ProjectionError, Settings
-from projection_server.simulation.job import canonical_json, code_version
-from projection_server.simulation.settings import PHYSICS_OPTIONS
+from projection_server.canonical import canonical_json
+from projection_server.simulation.job import code_version
+from projection_server.settings import PHYSICS_OPTIONS
 
 
 @pytest.fixture(scope='module')

@@ -13,10 +13,10 @@ from projection_server.simulation.pancake import (MAX_SEGMENTS, particles_layout
                                                    REFERENCE_LINKS, rings_layout)
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
-from projection_server.simulation.settings import load_settings
+from projection_server.settings import load_settings
 from projection_server.simulation.world import build_world
 from projection_server.timeline import turning
-from projection_server.timeline.translate import translate_bag
+from projection_server.workers.run import translate_bag
 
 # The knowledge base's turning scenario (scenario:scenario_description(turning, D)).
 TURNING = {'name': 'turning',

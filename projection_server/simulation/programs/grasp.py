@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.programs.registry import Parameter, Program, register
 from projection_server.simulation.world import settle
 
@@ -49,7 +49,7 @@ class GraspObject:
         target = next(scenario.of_class(TARGET_CLASS), None)
         robot = next(scenario.of_class('robot'), None)
         if target is None or robot is None:
-            raise ProjectionError('invalid_scenario',
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                                   f'grasp_object needs an {TARGET_CLASS} and a robot')
         self.force = params['force']
         self.gripper: Gripper = physics.grippers[robot.name]

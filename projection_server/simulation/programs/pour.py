@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.programs.registry import Parameter, Program, register
 
 if TYPE_CHECKING:
@@ -46,7 +46,7 @@ class Pour:
         cup = next(scenario.of_class('cup'), None)
         maker = next(scenario.of_class('pancake_maker'), None)
         if cup is None or maker is None:
-            raise ProjectionError('invalid_scenario', 'pour needs a cup and a pancake_maker')
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO, 'pour needs a cup and a pancake_maker')
         c = physics.client
         self._schedule(params)
         self._client, self._cup = c, physics.body(cup.name).body_id

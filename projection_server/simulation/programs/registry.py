@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import math
 from typing import Any, Callable, Protocol, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -83,23 +83,23 @@ class Program:
             ProjectionError: kind ``invalid_parameters``.
         """
         if not isinstance(values, dict):
-            raise ProjectionError('invalid_parameters', 'parameters must be a dict')
+            raise ProjectionError(ErrorKind.INVALID_PARAMETERS, 'parameters must be a dict')
         known = {p.name: p for p in self.params}
         unknown = sorted(set(values) - set(known))
         if unknown:
             raise ProjectionError(
-                'invalid_parameters',
+                ErrorKind.INVALID_PARAMETERS,
                 f'{self.name} has no parameter {", ".join(unknown)} (has: {", ".join(known)})')
         checked = {}
         for name, param in known.items():
             value = values.get(name, param.default)
             if (isinstance(value, bool) or not isinstance(value, (int, float))
                     or not math.isfinite(value)):
-                raise ProjectionError('invalid_parameters',
+                raise ProjectionError(ErrorKind.INVALID_PARAMETERS,
                                       f'{self.name}: {name} must be a number, got {value!r}')
             if not param.min <= value <= param.max:
                 raise ProjectionError(
-                    'invalid_parameters',
+                    ErrorKind.INVALID_PARAMETERS,
                     f'{self.name}: {name} = {value} {param.unit} is outside '
                     f'[{param.min}, {param.max}]')
             checked[name] = float(value)
@@ -138,7 +138,7 @@ def get(name: str) -> Program:
         return _PROGRAMS[name]
     except (KeyError, TypeError):
         raise ProjectionError(
-            'unknown_program',
+            ErrorKind.UNKNOWN_PROGRAM,
             f'no program {name!r} (known: {", ".join(sorted(_PROGRAMS))})') from None
 
 

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.programs.registry import Parameter, Program, register
 
 if TYPE_CHECKING:
@@ -72,7 +72,7 @@ class TurnPancake:
         pancake = next(scenario.of_class('pancake'), None)
         maker = next(scenario.of_class('pancake_maker'), None)
         if spatula is None or pancake is None or maker is None:
-            raise ProjectionError('invalid_scenario',
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                                   'turn_pancake needs a spatula, a pancake and a pancake_maker')
         c = physics.client
         self._client, self._spatula = c, physics.body(spatula.name).body_id

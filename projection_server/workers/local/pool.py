@@ -39,7 +39,7 @@ import threading
 import time
 from typing import Any, NoReturn, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.base import BackendBase
 from projection_server.workers.process import worker_main
@@ -50,7 +50,7 @@ if TYPE_CHECKING:
     from collections.abc import Mapping
 
     from projection_server.simulation.job import Job
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
     from projection_server.workers.bag_store import Retention
     from projection_server.workers.requests import Request
 
@@ -155,7 +155,7 @@ class WorkerPool(BackendBase):
                 return future.result(timeout=_POLL).bag
             except TimeoutError:
                 if not any(slot.alive for slot in self._slots):
-                    raise ProjectionError('pool_closed', 'no worker supervisor is running')
+                    raise ProjectionError(ErrorKind.POOL_CLOSED, 'no worker supervisor is running')
 
     def _droppable(self, request: Request) -> bool:
         # A tree runs its projections one after the other: those it has not made yet are
@@ -184,7 +184,7 @@ class WorkerPool(BackendBase):
             for request in pending:
                 if not request.future.done() and request.future.set_running_or_notify_cancel():
                     request.future.set_exception(
-                        ProjectionError('pool_closed', 'the projection pool was closed'))
+                        ProjectionError(ErrorKind.POOL_CLOSED, 'the projection pool was closed'))
             self._ready.notify_all()
         for slot in self._slots:
             slot.terminate_worker()   # a running projection fails with kind pool_closed
@@ -281,22 +281,22 @@ class _Slot:
             return
         try:
             if pool._closed:
-                raise ProjectionError('pool_closed', 'the projection pool was closed')
+                raise ProjectionError(ErrorKind.POOL_CLOSED, 'the projection pool was closed')
             if request.cancelled:
-                raise ProjectionError('cancelled', f'projection {request.key[:12]} was cancelled')
+                raise ProjectionError(ErrorKind.CANCELLED, f'projection {request.key[:12]} was cancelled')
             result = self._execute(request)
         except ProjectionError as exc:
-            if request.cancelled and exc.kind == 'worker_crashed':
+            if request.cancelled and exc.kind == ErrorKind.WORKER_CRASHED:
                 exc = ProjectionError(
-                    'cancelled', f'projection {request.key[:12]} was cancelled')
-            elif exc.kind in ('worker_crashed', 'timeout'):
+                    ErrorKind.CANCELLED, f'projection {request.key[:12]} was cancelled')
+            elif exc.kind in (ErrorKind.WORKER_CRASHED, ErrorKind.TIMEOUT):
                 _log.warning('%s; a new worker starts for the next projection', exc)
             with pool._lock:
                 pool._requests.fail(request, exc)
         except Exception as exc:  # a bug here must fail the projection, not hang it
             with pool._lock:
                 pool._requests.fail(request, ProjectionError(
-                    'simulation_failed', f'{type(exc).__name__}: {exc}'))
+                    ErrorKind.SIMULATION_FAILED, f'{type(exc).__name__}: {exc}'))
         else:
             request.future.set_result(result)
             self._projections += 1
@@ -344,15 +344,15 @@ class _Slot:
                         continue
                     self._kill()
                     if other is None:
-                        raise ProjectionError('timeout', f'{what} ran over time')
+                        raise ProjectionError(ErrorKind.TIMEOUT, f'{what} ran over time')
                     request, other = other[0], None
                     _log.warning('projection %s took longer than %g s', request.key[:12],
                                  request.timeout)
                     with pool._lock:
                         pool._requests.fail(request, ProjectionError(
-                            'timeout', f'projection {request.key[:12]} took longer than '
+                            ErrorKind.TIMEOUT, f'projection {request.key[:12]} took longer than '
                                        f'{request.timeout:g} s'))
-                    raise ProjectionError('worker_crashed', f'{what} was paused for it')
+                    raise ProjectionError(ErrorKind.WORKER_CRASHED, f'{what} was paused for it')
                 try:
                     # A dying worker's pipe reads as EOF, so the pipe is checked first.
                     message = self._conn.recv() if self._conn.poll() else None
@@ -373,7 +373,7 @@ class _Slot:
                 deadline = time.monotonic() + max(
                     (r.timeout for r in left.values()), default=pool.startup_timeout)
         except ProjectionError as exc:
-            if exc.kind in ('worker_crashed', 'timeout') and left:
+            if exc.kind in (ErrorKind.WORKER_CRASHED, ErrorKind.TIMEOUT) and left:
                 _log.warning('%s; a new worker runs its %d unfinished projections one by one',
                              exc, len(left))
         except Exception as exc:  # a bug here must not lose the projections left
@@ -392,7 +392,7 @@ class _Slot:
             try:
                 final = pool.store.publish(bag)
             except Exception as exc:
-                result = ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}')
+                result = ProjectionError(ErrorKind.SIMULATION_FAILED, f'{type(exc).__name__}: {exc}')
             else:
                 result['meta']['bag'] = str(final)
                 if not request.future.done():
@@ -429,7 +429,7 @@ class _Slot:
         ready = wait([self._conn, self._process.sentinel], timeout=timeout)
         if not ready:
             self._kill()
-            raise ProjectionError('timeout', f'{what} took longer than {timeout:g} s')
+            raise ProjectionError(ErrorKind.TIMEOUT, f'{what} took longer than {timeout:g} s')
         try:
             # A dying worker's pipe reads as EOF, so the pipe is checked first.
             if self._conn.poll():
@@ -443,8 +443,8 @@ class _Slot:
         code = self._process.exitcode
         self._kill()
         if self._pool._closed:
-            raise ProjectionError('pool_closed', f'the pool was closed during {what}')
-        raise ProjectionError('worker_crashed', f'worker died during {what} (exit code {code})')
+            raise ProjectionError(ErrorKind.POOL_CLOSED, f'the pool was closed during {what}')
+        raise ProjectionError(ErrorKind.WORKER_CRASHED, f'worker died during {what} (exit code {code})')
 
     def _ensure_worker(self) -> None:
         if self._process is not None and self._process.is_alive():

@@ -11,7 +11,7 @@ dies with the actor. Bags are written into a private temporary directory on the 
 machine (one left by an actor killed meanwhile is deleted by the next projection there) and
 sent back as bytes, so the node's bag directory needs no file system shared with the
 cluster. Every answer carries ``ok``; a failed projection's result is its
-:class:`~projection_server.simulation.errors.ProjectionError`. If the worker process dies,
+:class:`~projection_server.errors.ProjectionError`. If the worker process dies,
 so does the actor: Ray restarts it, and the backend reports the projection it was running
 as crashed.
 
@@ -29,7 +29,7 @@ import shutil
 import threading
 from typing import Any, TYPE_CHECKING
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.workers.bag_store import private_tmp_dir
 
 if TYPE_CHECKING:
@@ -80,7 +80,7 @@ class ProjectionActor:
                     exc = f'the worker process exited with code {self._process.wait(5.0)}'
                 except subprocess.TimeoutExpired:
                     pass
-            self._error = ProjectionError('simulation_failed', f'worker start-up: {exc}')
+            self._error = ProjectionError(ErrorKind.SIMULATION_FAILED, f'worker start-up: {exc}')
             return
         if ok:
             self._warm_up = message['warm_up']

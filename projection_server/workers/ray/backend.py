@@ -47,7 +47,7 @@ from typing import Any, TYPE_CHECKING
 import ray
 from ray.exceptions import RayActorError, RayError
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import code_version
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.base import BackendBase
@@ -57,7 +57,7 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Mapping
 
     from projection_server.simulation.job import Job
-    from projection_server.simulation.settings import Settings
+    from projection_server.settings import Settings
     from projection_server.workers.bag_store import Retention
     from projection_server.workers.requests import Request
 
@@ -136,7 +136,7 @@ def connect(address: str, workers: int) -> Callable[[], None] | None:
     if failure:
         where = f'the Ray cluster at {address!r}' if address else 'a local Ray instance'
         exc = failure[0]
-        raise ProjectionError('pool_closed',
+        raise ProjectionError(ErrorKind.POOL_CLOSED,
                               f'cannot start or join {where}: {type(exc).__name__}: {exc}'
                               ) from exc
 
@@ -196,7 +196,7 @@ class RayBackend(BackendBase):
             if all(info is not None for info in infos):
                 return [dict(info) for info in infos]
             if time.monotonic() > deadline:
-                raise ProjectionError('timeout', f'Ray actors not ready within {timeout:g} s')
+                raise ProjectionError(ErrorKind.TIMEOUT, f'Ray actors not ready within {timeout:g} s')
             time.sleep(0.05)
 
     def _enqueue(self, request: Request) -> None:
@@ -239,7 +239,7 @@ class RayBackend(BackendBase):
             self._events.put(None)
             while self._queue:
                 self._requests.fail(self._queue.popleft(), ProjectionError(
-                    'pool_closed', 'the projection backend was closed'))
+                    ErrorKind.POOL_CLOSED, 'the projection backend was closed'))
             for actor in self._actors:
                 _kill(actor.handle, restart=False)
         self._thread.join(30.0)
@@ -272,7 +272,7 @@ class RayBackend(BackendBase):
                 for actor in self._actors:
                     for request in _running(actor):
                         self._requests.fail(request, ProjectionError(
-                            'pool_closed', 'the projection backend was closed'))
+                            ErrorKind.POOL_CLOSED, 'the projection backend was closed'))
 
     def _ends(self) -> list[float]:
         """When :meth:`_check_deadlines` must look next (called with the lock)."""
@@ -388,7 +388,7 @@ class RayBackend(BackendBase):
             self._lost(actor, exc)
             return None
         except RayError as exc:
-            return ProjectionError('simulation_failed', f'{type(exc).__name__}: {exc}'), False
+            return ProjectionError(ErrorKind.SIMULATION_FAILED, f'{type(exc).__name__}: {exc}'), False
 
     def _finish_other(self, actor: _Actor, future: Any) -> None:
         """The projection that paused ``actor``'s tree has ended."""
@@ -416,7 +416,7 @@ class RayBackend(BackendBase):
                 actor.ref = None
                 if ok and value['code_version'] != self._code:
                     value, ok = ProjectionError(
-                        'invalid_settings',
+                        ErrorKind.INVALID_SETTINGS,
                         f'a Ray worker on node {value["node"]} runs projection_server code '
                         f'{value["code_version"]}, this node {self._code}: install the '
                         'same version on every machine of the cluster'), False
@@ -463,7 +463,7 @@ class RayBackend(BackendBase):
         try:
             return self._publish(request, value) if ok else value
         except Exception as exc:   # writing into the bag directory failed
-            return ProjectionError('bag_error', f'{type(exc).__name__}: {exc}')
+            return ProjectionError(ErrorKind.BAG_ERROR, f'{type(exc).__name__}: {exc}')
 
     def _settle(self, actor: _Actor, request: Request,
                 result: ProjectionResult | ProjectionError) -> None:
@@ -485,7 +485,7 @@ class RayBackend(BackendBase):
                 continue
             if request.cancelled:
                 self._requests.fail(request, ProjectionError(
-                    'cancelled', f'projection {request.key[:12]} was cancelled'))
+                    ErrorKind.CANCELLED, f'projection {request.key[:12]} was cancelled'))
                 continue
             request.family = None
             self._queue.appendleft(request)
@@ -514,7 +514,7 @@ class RayBackend(BackendBase):
             if request is None and tree is None and other is None:
                 # Died for good while starting: the next job says so.
                 actor.ref, actor.error = None, ProjectionError(
-                    'worker_crashed', f'a Ray worker could not start: {_first_line(exc)}')
+                    ErrorKind.WORKER_CRASHED, f'a Ray worker could not start: {_first_line(exc)}')
                 return
             self._restarting(actor)
 
@@ -523,12 +523,12 @@ class RayBackend(BackendBase):
         """Why ``request`` failed when its actor died of ``exc``."""
         what = f'projection {request.key[:12]}'
         if self._closed:
-            return ProjectionError('pool_closed', f'the backend was closed during {what}')
+            return ProjectionError(ErrorKind.POOL_CLOSED, f'the backend was closed during {what}')
         if request.cancelled:
-            return ProjectionError('cancelled', f'{what} was cancelled')
+            return ProjectionError(ErrorKind.CANCELLED, f'{what} was cancelled')
         if timed_out:
-            return ProjectionError('timeout', f'{what} took longer than {request.timeout:g} s')
-        return ProjectionError('worker_crashed',
+            return ProjectionError(ErrorKind.TIMEOUT, f'{what} took longer than {request.timeout:g} s')
+        return ProjectionError(ErrorKind.WORKER_CRASHED,
                                f'Ray worker died during {what}: {_first_line(exc)}')
 
     def _check_deadlines(self) -> None:
@@ -544,7 +544,7 @@ class RayBackend(BackendBase):
                 elif now - actor.started > self.startup_timeout and self._queue:
                     # No actor could be placed or started (e.g. no free CPU in the cluster).
                     self._requests.fail(self._queue.popleft(), ProjectionError(
-                        'timeout', f'no Ray worker started within {self.startup_timeout:g} s'
+                        ErrorKind.TIMEOUT, f'no Ray worker started within {self.startup_timeout:g} s'
                         ' (are there free CPUs in the cluster?)'))
                     actor.started = now
 

@@ -25,7 +25,7 @@ import subprocess
 import tempfile
 import time
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 
 __all__ = ['LocalCluster']
 
@@ -95,7 +95,7 @@ class LocalCluster:
     def _launch(self, args: list[str], name: str) -> None:
         ray = shutil.which('ray')
         if ray is None:
-            raise ProjectionError('pool_closed', 'the ray command is not installed')
+            raise ProjectionError(ErrorKind.POOL_CLOSED, 'the ray command is not installed')
         with open(self.temp_dir / f'{name}.out', 'wb') as out:
             process = subprocess.Popen([ray, 'start', *args], stdout=out,
                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
@@ -108,10 +108,10 @@ class LocalCluster:
         deadline = time.monotonic() + self.startup_timeout
         while 'Ray runtime started' not in self.log(name):
             if process.poll() is not None:
-                raise ProjectionError('pool_closed', f'ray node {name} stopped (exit code '
+                raise ProjectionError(ErrorKind.POOL_CLOSED, f'ray node {name} stopped (exit code '
                                       f'{process.returncode}):\n{self.log(name)[-3000:]}')
             if time.monotonic() > deadline:
-                raise ProjectionError('pool_closed', f'ray node {name} did not start within '
+                raise ProjectionError(ErrorKind.POOL_CLOSED, f'ray node {name} did not start within '
                                       f'{self.startup_timeout:g} s:\n{self.log(name)[-3000:]}')
             time.sleep(0.2)
 

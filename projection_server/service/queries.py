@@ -26,7 +26,8 @@ import time
 from typing import Any, Callable
 import uuid
 
-from projection_server import progress, projection, prolog_bridge
+from projection_server import projection
+from projection_server.service import progress, prolog_bridge
 
 __all__ = [
     'ALL',
@@ -152,9 +153,10 @@ class QuerySession:
         self.id = query_id
         self.mode = mode
         self.text = text
-        self.options = options
         self.wait = wait  # seconds to wait for one step before giving up on it
         self.owner = f'{query_id}#{next(self._serial)}'  # tags its projections
+        # What Prolog passes on to every projection the query makes (query_service.pl).
+        self.options = {**options, 'query': {'id': query_id, 'owner': self.owner}}
         self.started = time.monotonic()
         self.last_used = self.started
         self.solutions = 0
@@ -248,8 +250,6 @@ class QuerySession:
                                        message=f'cannot create a Prolog engine: {exc}'))
             self._exit()
             return
-        projection.set_owner(self.owner)
-        progress.bind(self.id)  # projections made on this thread report to this query
         try:
             self._busy = True
             checked = prolog_bridge.check(self.text, self.options)
@@ -279,9 +279,9 @@ class QuerySession:
                                            message=f'{type(exc).__name__}: {exc}'))
         finally:
             self._busy = False
-            projection.set_owner(None)
             projection.drop(self.owner)   # what it prefetched and will not ask for
             projection.release(self.owner)
+            progress.forget(self.owner)
             try:
                 prolog_bridge.detach_engine()
             except BaseException:  # noqa: BLE001 - a pending abort may land here

@@ -3,7 +3,7 @@
 Goal: a query and a mode (ONCE or ALL_SOLUTIONS), as for ``~/query``. Feedback: one
 message per finished projection (index/total, parameters, outcome, bag, elapsed time).
 Result: the solutions, as ``~/query`` returns them. Cancelling the goal finishes its query:
-it stops at the latest after the projection under way (see :mod:`projection_server.progress`).
+it stops at the latest after the projection under way (see :mod:`projection_server.service.progress`).
 """
 
 from __future__ import annotations
@@ -16,13 +16,13 @@ from typing import Any, TYPE_CHECKING
 from projection_interfaces.action import Project
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 
-from projection_server import progress
-from projection_server.queries import ALL, ONCE, QueryAnswer, QueryError
+from projection_server.service import progress
+from projection_server.service.queries import ALL, ONCE, QueryAnswer, QueryError
 
 if TYPE_CHECKING:
     from rclpy.node import Node
 
-    from projection_server.queries import QueryManager
+    from projection_server.service.queries import QueryManager
 
 __all__ = ['ProjectActionServer']
 

@@ -22,7 +22,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from projection_server.simulation.errors import ProjectionError
+from projection_server.canonical import canonical_json
+from projection_server.errors import ErrorKind, ProjectionError
 
 __all__ = [
     'ControlSettings',
@@ -143,7 +144,7 @@ class Settings:
                           for name, section in sections.items()})
         programs = data.get('programs') or {}
         if not isinstance(programs, dict):
-            raise ProjectionError('invalid_settings', 'programs: expected a mapping')
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS, 'programs: expected a mapping')
         checked = {}
         for program, overrides in programs.items():
             checked[str(program)] = check_physics(overrides, settings.control_hz,
@@ -179,8 +180,6 @@ class Settings:
         wanted = (program, tuple(sorted((physics or {}).items())))
         text = self._projection_json.get(wanted)
         if text is None:
-            from projection_server.simulation.job import canonical_json   # (imports this)
-
             text = canonical_json(self.for_projection(program, physics).to_dict())
             if len(self._projection_json) < 256:
                 self._projection_json[wanted] = text
@@ -207,26 +206,26 @@ def check_physics(overrides: Any, control_hz: int = 1,
     ``invalid_settings`` naming the first bad setting and its accepted range (``rate_hz``
     must also be a multiple of ``control_hz``)."""
     if not isinstance(overrides, Mapping):
-        raise ProjectionError('invalid_settings', f'{where}: expected a mapping of settings')
+        raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{where}: expected a mapping of settings')
     checked = {}
     for name, value in overrides.items():
         option = PHYSICS_OPTIONS.get(str(name))
         if option is None:
             raise ProjectionError(
-                'invalid_settings', f'{where}: unknown physics setting {name!r}; '
+                ErrorKind.INVALID_SETTINGS, f'{where}: unknown physics setting {name!r}; '
                 f'accepted: {", ".join(PHYSICS_OPTIONS)}')
         kind = int if option.integer else (int, float)
         if isinstance(value, bool) or not isinstance(value, kind):
             what = 'an integer' if option.integer else 'a number'
-            raise ProjectionError('invalid_settings',
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS,
                                   f'{where}: {name} must be {what}, got {value!r}')
         if not option.min <= value <= option.max:
             raise ProjectionError(
-                'invalid_settings',
+                ErrorKind.INVALID_SETTINGS,
                 f'{where}: {name} must be in [{option.min:g}, {option.max:g}], got {value!r}')
         if name == 'rate_hz' and value % control_hz:
             raise ProjectionError(
-                'invalid_settings', f'{where}: rate_hz must be a multiple of {control_hz} '
+                ErrorKind.INVALID_SETTINGS, f'{where}: rate_hz must be a multiple of {control_hz} '
                 f'(the control and logging rates), got {value!r}')
         checked[str(name)] = int(value) if option.integer else float(value)
     return checked
@@ -246,7 +245,7 @@ def config_path() -> Path:
         from ament_index_python.packages import get_package_share_directory
         share = Path(get_package_share_directory('projection_server'))
     except (ImportError, LookupError) as exc:
-        raise ProjectionError('invalid_settings', f'{CONFIG_NAME} not found: {exc}') from exc
+        raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{CONFIG_NAME} not found: {exc}') from exc
     return share / 'config' / CONFIG_NAME
 
 
@@ -258,15 +257,15 @@ def load_settings(path: str | os.PathLike[str] | None = None) -> Settings:
     try:
         data = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError) as exc:
-        raise ProjectionError('invalid_settings', f'cannot read {path}: {exc}') from exc
+        raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'cannot read {path}: {exc}') from exc
     if not isinstance(data, dict):
-        raise ProjectionError('invalid_settings', f'{path}: expected a mapping')
+        raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{path}: expected a mapping')
     return Settings.from_dict(data)
 
 
 def _section(name: str, cls: type, data: Any) -> Any:
     if not isinstance(data, dict):
-        raise ProjectionError('invalid_settings', f'{name}: expected a mapping')
+        raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{name}: expected a mapping')
     types = {f.name: f.type for f in fields(cls)}
     _check_keys(name, data, types)
     values = {}
@@ -279,7 +278,7 @@ def _section(name: str, cls: type, data: Any) -> Any:
             else:
                 values[key] = {'int': int, 'float': float}[typ](value)
         except (TypeError, ValueError) as exc:
-            raise ProjectionError('invalid_settings', f'{name}.{key}: {exc}') from exc
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{name}.{key}: {exc}') from exc
     return cls(**values)
 
 
@@ -288,7 +287,7 @@ def _check_keys(name: str, data: Mapping[str, Any], expected: Mapping[str, Any])
     unknown = sorted(set(data) - set(expected))
     if missing or unknown:
         raise ProjectionError(
-            'invalid_settings', f'{name}: missing keys {missing}, unknown keys {unknown}')
+            ErrorKind.INVALID_SETTINGS, f'{name}: missing keys {missing}, unknown keys {unknown}')
 
 
 def _jsonable(value: Any) -> Any:

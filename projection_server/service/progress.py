@@ -1,9 +1,10 @@
 """Progress of running queries, one report per finished projection.
 
-Prolog's ``make_projection`` calls :func:`projection_done` after each projection, in the
-thread of the query that made it. A listener registered for that query's id (the
-``~/project`` action's feedback) receives a :class:`ProjectionDone`; a query with no
-listener only counts. The query's thread names its query with :func:`bind`.
+Prolog's ``make_projection`` calls :func:`projection_done` after each projection, with the
+context of the query that made it (its ``id`` and ``owner`` token, which the query service
+gives Prolog for the query's run). A listener registered for that query's id (the ``~/project`` action's feedback)
+receives a :class:`ProjectionDone`; a query with no listener only counts. The service
+calls :func:`forget` when the query has ended.
 
     >>> with listen('me/1', print):
     ...     queries.query('all', 'me/1', 'make_projection(grasping, ...)')
@@ -21,14 +22,14 @@ import threading
 from typing import Any, Callable, TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator
+    from collections.abc import Iterator, Mapping
 
-__all__ = ['ProjectionDone', 'QueryCancelled', 'bind', 'listen', 'projection_done']
+__all__ = ['ProjectionDone', 'QueryCancelled', 'forget', 'listen', 'projection_done']
 
 _log = logging.getLogger('projection_server.projection')
-_local = threading.local()
 _lock = threading.Lock()
 _listeners: dict[str, Callable[[ProjectionDone], None]] = {}
+_counts: dict[str, int] = {}   # projections finished so far, by query owner token
 
 
 class QueryCancelled(Exception):
@@ -49,10 +50,10 @@ class ProjectionDone:
     bag: str
 
 
-def bind(query_id: str | None) -> None:
-    """Name the query the calling thread runs (None: none); resets its count."""
-    _local.query_id = query_id
-    _local.count = 0
+def forget(owner: str) -> None:
+    """Forget the count of the query whose owner token is ``owner``: it has ended."""
+    with _lock:
+        _counts.pop(owner, None)
 
 
 @contextmanager
@@ -68,15 +69,18 @@ def listen(query_id: str, callback: Callable[[ProjectionDone], None]) -> Iterato
                 del _listeners[query_id]
 
 
-def projection_done(index: int, total: int, program: str, parameters: dict[str, Any],
-                    bag: str, outcome: list[str]) -> None:
-    """Called by Prolog after each projection of ``make_projection``."""
-    query_id = getattr(_local, 'query_id', None)
-    _local.count = getattr(_local, 'count', 0) + 1
+def projection_done(query: Mapping[str, str] | None, index: int, total: int, program: str,
+                    parameters: dict[str, Any], bag: str, outcome: list[str]) -> None:
+    """Called by Prolog after each projection of ``make_projection`` of the query whose
+    context is ``query`` (``id`` and ``owner``; None: made outside the service)."""
+    query_id = query['id'] if query is not None else None
     _log.debug('query %s: projection %d/%d of %s %s: %s', query_id, index, total, program,
                parameters, ' '.join(outcome) or 'no events')
+    if query is None:
+        return
     with _lock:
-        callback = _listeners.get(query_id) if query_id is not None else None
+        count = _counts[query['owner']] = _counts.get(query['owner'], 0) + 1
+        callback = _listeners.get(query_id)
     if callback is not None:
-        callback(ProjectionDone(query_id, int(index), int(total), _local.count, str(program),
+        callback(ProjectionDone(query_id, int(index), int(total), count, str(program),
                                 dict(parameters), [str(e) for e in outcome], str(bag)))

@@ -1,0 +1,119 @@
+"""What a projection's bag holds: its topics, their QoS, the message types, and the
+records a bag's messages stand for (the monitor writes them, the timeline reads them).
+
+Every stage that writes or reads a projection's log shares this vocabulary; it imports no
+other part of the project but its error.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import Any, NamedTuple, TYPE_CHECKING
+
+from projection_server.errors import ErrorKind, ProjectionError
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+__all__ = [
+    'INTERFACE_PACKAGE',
+    'LATCHED',
+    'PARTICLES_NS',
+    'REFERENCE_LINKS',
+    'Record',
+    'TOPICS',
+    'message_definitions',
+    'offered_qos',
+    'typestore',
+]
+
+INTERFACE_PACKAGE = 'projection_interfaces'
+TOPICS = {
+    'info': '/projection/info',
+    'tf': '/tf',
+    'tf_static': '/tf_static',
+    'markers': '/projection/markers',
+    'contacts': '/projection/contacts',
+    'gripper': '/projection/gripper',
+    'objects': '/projection/objects',
+    'clock': '/clock',
+}
+# Published once and latched: late subscribers must still get it.
+LATCHED = frozenset({TOPICS['tf_static'], TOPICS['info']})
+
+
+def offered_qos(topic: str) -> Any:
+    """The QoS profile a publisher of ``topic`` offers: reliable, keep last; transient
+    local (depth 1) for the latched topics, volatile (depth 100) for the others, as
+    tf2_ros' broadcasters and rosbag2's defaults do."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+
+    infinite = QosTime(sec=9223372036, nsec=854775807)   # RMW_DURATION_INFINITE
+    latched = topic in LATCHED
+    return Qos(history=QosHistory.KEEP_LAST, depth=1 if latched else 100,
+               reliability=QosReliability.RELIABLE,
+               durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+               deadline=infinite, lifespan=infinite, liveliness=QosLiveliness.AUTOMATIC,
+               liveliness_lease_duration=infinite, avoid_ros_namespace_conventions=False)
+
+
+def message_definitions() -> dict[str, str]:
+    """``{'projection_interfaces/msg/Name': msg text}`` of the project's messages.
+
+    Read from the installed share dir of ``projection_interfaces`` when it is on
+    ``AMENT_PREFIX_PATH`` and has messages, else from the source tree's ``msg_defs/msg``.
+    """
+    candidates = [Path(prefix) / 'share' / INTERFACE_PACKAGE / 'msg'
+                  for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
+                  if prefix]
+    candidates.append(Path(__file__).resolve().parents[2] / 'msg_defs' / 'msg')
+    for directory in candidates:
+        files = sorted(directory.glob('*.msg'))
+        if files:
+            return {f'{INTERFACE_PACKAGE}/msg/{f.stem}': f.read_text() for f in files}
+    raise ProjectionError(ErrorKind.BAG_ERROR, f'no {INTERFACE_PACKAGE} message definitions found')
+
+
+@functools.cache
+def typestore() -> Typestore:
+    """ROS 2 Jazzy's types plus the project's messages (built once per process)."""
+    from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types: dict[str, Any] = {}
+    for name, text in message_definitions().items():
+        types.update(get_types_from_msg(text, name))
+    store.register(types)
+    return store
+
+
+# A deformable body (a pancake) logs its segments as link frames ``body/link``; the two of
+# these names are on its rim, a quarter turn apart, and give its upper side's normal.
+REFERENCE_LINKS = ('rim_a', 'rim_b')
+
+# The namespace of the particle fluids' SPHERE_LIST markers on the markers topic (one
+# marker per fluid, text = the fluid's name).
+PARTICLES_NS = 'particles'
+
+
+class Record(NamedTuple):
+    """What the monitor logged on one topic at one time, as plain data: what a projection's
+    timeline is made from, in the worker from the monitor's own records, or read back from
+    a bag (:func:`projection_server.bags.read_records`).
+
+    ``kind`` and ``data``:
+
+    * ``info``: the ``ProjectionInfo`` message;
+    * ``tf_static``, ``tf``: ``[(parent frame, child frame, (x, y, z), (x, y, z, w)), ...]``;
+    * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal z), ...]``;
+    * ``gripper``: ``(name, command, finger links)``;
+    * ``objects``: ``[(name, load, load limit, broken), ...]``;
+    * ``particles``: ``{fluid: positions (n, 3)}``.
+    """
+
+    kind: str
+    t_ns: int
+    data: Any
