@@ -21,7 +21,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={'projection_server.simulation': ['assets/*.urdf', 'assets/*.yaml'],
+    package_data={'projection_server.simulation.robots': ['assets/*.urdf', 'assets/*.yaml'],
                   'projection_server.workers': ['*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),

@@ -18,6 +18,7 @@ from projection_server.errors import ErrorKind, ProjectionError
 
 if TYPE_CHECKING:
     from projection_server.settings import Settings
+    from projection_server.simulation.scenario import Scenario
 
 __all__ = [
     'Body',
@@ -269,9 +270,10 @@ def _bound_client_class() -> type:
 class Physics:
     """The simulation of one projection, with named access and queries."""
 
-    def __init__(self, client: Any, settings: Settings):
+    def __init__(self, client: Any, settings: Settings, scenario: Scenario | None = None):
         self.client = client
         self.settings = settings
+        self.scenario = scenario   # what the world is built from
         self.step_count = 0
         self.bodies: dict[str, Body] = {}
         self.grippers: dict[str, Gripper] = {}

@@ -1,173 +1,51 @@
 """Checked, typed form of a scenario description (the dict of ``docs/contracts.md``).
 
 Pure Python, so the parent process can reject a bad scenario before a worker is involved.
+What each class accepts is its unit's schema in the object class registry
+(:mod:`projection_server.simulation.objects`).
 
 Tolerance rules for the knowledge base's dicts:
 
 * Parts of an entity (``parts``) are flattened into the scenario; their poses are in the world.
 * A missing ``pose`` is the identity pose; a missing ``properties`` is empty.
-* Every property acts on the simulation or is refused: a key that is neither in
-  :data:`PROPERTIES` nor in :data:`FIXED` for the entity's class is an error naming the
-  entity, the key and the accepted keys (:func:`accepted_properties`). :data:`FIXED` keys
-  describe what the builder makes of a class (``shape``, a static body's ``mass`` 0, the
-  robot's ``model``); another value than the one given there is an error.
-* Listed properties with a default may be left out; those without one are required.
-* Older keys of :data:`ALIASES` (``diameter``, ``count``) stand in for the knowledge base's
-  (``radius``, ``particle_count``) when those are missing.
+* Every property acts on the simulation or is refused: a key that is neither a property of
+  the entity's class nor one of its ``fixed`` keys is an error naming the entity, the key
+  and the accepted keys (:func:`accepted_properties`). ``fixed`` keys describe what the
+  builder makes of a class (``shape``, a static body's ``mass`` 0); another value than the
+  one given there is an error.
+* Properties with a default may be left out; those without one are required.
+* A class's ``aliases`` (older keys such as ``diameter``, ``count``) stand in for its
+  properties (``radius``, ``particle_count``) when those are missing.
 * Numbers may be ints or floats; every physical quantity must be finite and in its range.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 from typing import Any, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation import objects
+from projection_server.simulation.objects.registry import check_value, is_number, REQUIRED
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Mapping
 
+    from projection_server.simulation.objects import ObjectClass
+
 __all__ = [
-    'ALIASES',
-    'CLASSES',
     'Entity',
-    'FIXED',
-    'PROPERTIES',
     'Pose',
     'Scenario',
     'accepted_properties',
     'parse_scenario',
 ]
 
-REQUIRED = object()
-_POSITIVE, _NONNEGATIVE, _FRACTION, _ANY = 'positive', 'nonnegative', 'fraction', 'any'
-_POINTS, _PAIRS = 'points', 'pairs'   # lists of [x, y, z] / of [parent, child] indices
-
-# class -> property -> (default or REQUIRED, range). Defaults are documented values of the
-# builder, used only when the knowledge base leaves a property out.
-PROPERTIES: dict[str, dict[str, tuple[Any, str]]] = {
-    'environment': {
-        'gravity': (None, _NONNEGATIVE),     # m/s^2 along -z; default: config/physics.yaml
-    },
-    'floor': {
-        'friction': (0.8, _NONNEGATIVE),
-        'restitution': (0.0, _FRACTION),
-    },
-    'table': {
-        'size_x': (REQUIRED, _POSITIVE),
-        'size_y': (REQUIRED, _POSITIVE),
-        'size_z': (REQUIRED, _POSITIVE),
-        'height': (None, _NONNEGATIVE),       # top surface height; default: pose z
-        'friction': (0.6, _NONNEGATIVE),
-        'restitution': (0.1, _FRACTION),
-    },
-    'robot': {
-        'gripper': ('pr2_gripper', 'name'),
-    },
-    # A robot's gripper, given as a part of it (the robot's `gripper` names it). Its
-    # friction is the pads' rubber; urdf names the asset (assets/<stem>.urdf + .yaml).
-    'gripper': {
-        'urdf': ('pr2_gripper.urdf', 'name'),
-        'friction': (0.8, _NONNEGATIVE),
-        'restitution': (0.0, _FRACTION),
-        'max_force': (80.0, _POSITIVE),
-        'max_opening': (0.09, _POSITIVE),
-    },
-    'egg': {
-        'length': (REQUIRED, _POSITIVE),
-        'diameter': (REQUIRED, _POSITIVE),
-        'mass': (REQUIRED, _POSITIVE),
-        'friction': (0.3, _NONNEGATIVE),
-        'restitution': (0.05, _FRACTION),
-        'rolling_friction': (0.0, _NONNEGATIVE),
-        'spinning_friction': (0.0, _NONNEGATIVE),
-        'breaking_force': (None, _POSITIVE),  # None: the shell does not break
-    },
-    # An open container: a bottom disc and a wall, ``radius`` and ``height`` outside.
-    'cup': {
-        'radius': (REQUIRED, _POSITIVE),
-        'height': (REQUIRED, _POSITIVE),
-        'wall_thickness': (0.004, _POSITIVE),
-        'mass': (REQUIRED, _NONNEGATIVE),
-        'friction': (0.5, _NONNEGATIVE),
-        'restitution': (0.1, _FRACTION),
-    },
-    'pancake_maker': {
-        'radius': (REQUIRED, _POSITIVE),
-        'height': (REQUIRED, _POSITIVE),
-        'mass': (0.0, _NONNEGATIVE),
-        'friction': (0.5, _NONNEGATIVE),
-        'restitution': (0.1, _FRACTION),
-    },
-    'pancake': {
-        'radius': (REQUIRED, _POSITIVE),
-        'thickness': (REQUIRED, _POSITIVE),
-        'mass': (REQUIRED, _POSITIVE),
-        'friction': (0.5, _NONNEGATIVE),
-        'restitution': (0.0, _FRACTION),
-        # The deformable model (projection_server.simulation.pancake): "rings" (a centre
-        # disc and rings of segments) or "particles" (one segment per given offset).
-        'model': ('rings', 'name'),
-        'joint_stiffness': (0.05, _POSITIVE),   # N m/rad
-        'joint_damping': (0.001, _NONNEGATIVE),   # N m s/rad
-        'joint_radius': (0.015, _POSITIVE),     # m
-        'ring_count': (3, _POSITIVE),
-        'segment_count': (8, _POSITIVE),
-        'particles': (None, _POINTS),
-        'joints': (None, _PAIRS),
-    },
-    'spatula': {
-        'size_x': (REQUIRED, _POSITIVE),
-        'size_y': (REQUIRED, _POSITIVE),
-        'size_z': (REQUIRED, _POSITIVE),
-        'mass': (REQUIRED, _POSITIVE),
-        'friction': (0.4, _NONNEGATIVE),
-        'restitution': (0.1, _FRACTION),
-    },
-    # Spheres; with a ``container`` (an entity built before, e.g. the owning cup) they fill
-    # it from its bottom, without one they form a cubic block at the pose.
-    'particle_fluid': {
-        'particle_count': (REQUIRED, _POSITIVE),
-        'particle_radius': (REQUIRED, _POSITIVE),
-        'particle_mass': (REQUIRED, _POSITIVE),
-        'friction': (0.1, _NONNEGATIVE),
-        'restitution': (0.0, _FRACTION),
-        'rolling_friction': (0.0, _NONNEGATIVE),
-        'spinning_friction': (0.0, _NONNEGATIVE),
-        'damping': (5.0, _NONNEGATIVE),
-        'container': (None, 'name'),
-    },
-}
-# Older keys still accepted where the knowledge base's key is missing:
-# class -> old key -> (key of the knowledge base, factor).
-ALIASES: dict[str, dict[str, tuple[str, float]]] = {
-    'cup': {'diameter': ('radius', 0.5)},
-    'pancake_maker': {'diameter': ('radius', 0.5)},
-    'pancake': {'diameter': ('radius', 0.5), 'height': ('thickness', 1.0)},
-    'particle_fluid': {'count': ('particle_count', 1.0)},
-}
-# Keys that say what the builder makes of a class, with the one value it accepts.
-FIXED: dict[str, dict[str, Any]] = {
-    'environment': {},
-    'floor': {'shape': 'plane', 'mass': 0.0},
-    'table': {'shape': 'box', 'mass': 0.0},
-    'robot': {'shape': 'none', 'model': 'pr2'},
-    'gripper': {'shape': 'urdf'},
-    'egg': {'shape': 'ellipsoid'},
-    'cup': {'shape': 'cup'},
-    'pancake_maker': {'shape': 'cylinder'},
-    'pancake': {'shape': 'disc'},
-    'spatula': {'shape': 'box'},
-    'particle_fluid': {'shape': 'sphere'},
-}
-CLASSES = frozenset(PROPERTIES)
-
 
 def accepted_properties(cls: str) -> list[str]:
     """The property keys the simulator honours for class ``cls`` (sorted; aliases left
     out); [] for an unknown class."""
-    return sorted({*PROPERTIES.get(cls, {}), *FIXED.get(cls, {})})
+    return objects.get(cls).accepted() if cls in objects.names() else []
 
 
 @dataclass(frozen=True)
@@ -186,6 +64,11 @@ class Entity:
     cls: str
     pose: Pose
     properties: Mapping[str, Any]
+
+    @property
+    def unit(self) -> ObjectClass:
+        """The entity's object class: its schema, builder and timeline roles."""
+        return objects.get(self.cls)
 
 
 @dataclass(frozen=True)
@@ -231,8 +114,8 @@ def _collect(item: Any, out: list[Entity], where: str) -> None:
     name, cls = item.get('name'), item.get('class')
     if not isinstance(name, str) or not name:
         _fail(f'{where}: entity without a name')
-    if cls not in CLASSES:
-        _fail(f'{name}: unknown class {cls!r} (known: {", ".join(sorted(CLASSES))})')
+    if not isinstance(cls, str) or cls not in objects.names():
+        _fail(f'{name}: unknown class {cls!r} (known: {", ".join(objects.names())})')
     props = item.get('properties', {})
     if not isinstance(props, dict):
         _fail(f'{name}: properties must be a dict')
@@ -255,63 +138,36 @@ def _pose(name: str, pose: Any) -> Pose:
 
 def _vector(name: str, key: str, value: Any) -> tuple[float, float, float]:
     if (not isinstance(value, (list, tuple)) or len(value) != 3
-            or not all(_is_number(v) for v in value)):
+            or not all(is_number(v) for v in value)):
         _fail(f'{name}: {key} must be a list of three finite numbers, got {value!r}')
     return tuple(float(v) for v in value)
 
 
 def _properties(name: str, cls: str, given: Mapping[str, Any]) -> dict[str, Any]:
+    unit = objects.get(cls)
     values: dict[str, Any] = {}
     given = dict(given)
-    aliases = ALIASES.get(cls, {})
-    for old, (key, factor) in aliases.items():
+    for old, (key, factor) in unit.aliases.items():
         if key not in given and old in given:
-            given[key] = given[old] * factor if _is_number(given[old]) else given[old]
-    accepted = accepted_properties(cls)
-    for key in sorted(set(given) - set(accepted) - set(aliases)):
+            given[key] = given[old] * factor if is_number(given[old]) else given[old]
+    accepted = unit.accepted()
+    for key in sorted(set(given) - set(accepted) - set(unit.aliases)):
         _fail(f'{name}: {cls} has no property {key!r} that the simulator honours '
               f'(accepted: {", ".join(accepted)})')
-    for key, fixed in FIXED[cls].items():
+    for key, fixed in unit.fixed.items():
         if key in given and given[key] != fixed and not (
-                _is_number(given[key]) and _is_number(fixed) and given[key] == fixed):
+                is_number(given[key]) and is_number(fixed) and given[key] == fixed):
             _fail(f'{name}: {cls} property {key!r} must be {fixed!r} (the simulator builds '
                   f'a {cls} as that), got {given[key]!r}')
-    for key, (default, kind) in PROPERTIES[cls].items():
-        value = given.get(key, default)
+    for prop in unit.properties:
+        value = given.get(prop.name, prop.default)
         if value is REQUIRED:
-            _fail(f'{name}: {cls} property {key!r} is missing')
+            _fail(f'{name}: {cls} property {prop.name!r} is missing')
         if value is not None:
-            values[key] = _checked(name, key, value, kind)
+            values[prop.name] = check_value(name, prop.name, value, prop.kind)
+    if unit.check is not None:
+        unit.check(name, values)
     return values
-
-
-def _checked(name: str, key: str, value: Any, kind: str) -> Any:
-    if kind in (_POINTS, _PAIRS):
-        size = 3 if kind == _POINTS else 2
-        if not isinstance(value, (list, tuple)) or not all(
-                isinstance(v, (list, tuple)) and len(v) == size and all(map(_is_number, v))
-                for v in value):
-            _fail(f'{name}: {key} must be a list of lists of {size} numbers')
-        if kind == _PAIRS:
-            return [tuple(int(i) for i in v) for v in value]
-        return [tuple(float(x) for x in v) for v in value]
-    if kind == 'name':
-        if not isinstance(value, str) or not value:
-            _fail(f'{name}: {key} must be a non-empty string')
-        return value
-    if not _is_number(value):
-        _fail(f'{name}: {key} must be a finite number, got {value!r}')
-    value = float(value)
-    ok = {_POSITIVE: value > 0, _NONNEGATIVE: value >= 0, _FRACTION: 0 <= value <= 1,
-          _ANY: True}[kind]
-    if not ok:
-        _fail(f'{name}: {key} = {value} is not {kind}')
-    return value
-
-
-def _is_number(value: Any) -> bool:
-    return (isinstance(value, (int, float)) and not isinstance(value, bool)
-            and math.isfinite(value))
 
 
 def _fail(message: str):

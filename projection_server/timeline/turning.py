@@ -3,7 +3,7 @@
 The plane of a body made of segments is fitted to the segments' positions (SVD of the
 centred positions; the normal is the singular vector of the smallest singular value, as in
 Haidu et al.'s simulation analyses). Its sign is fixed by the segment-ordering convention of
-:mod:`projection_server.simulation.pancake`: the upper side's normal is along
+:mod:`projection_server.simulation.objects.pancake`: the upper side's normal is along
 ``(a - c) x (b - c)`` with ``c`` the root segment and ``a``, ``b`` the two reference rim
 segments (a quarter turn apart, counter-clockwise seen from the upper side).
 """

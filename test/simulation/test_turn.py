@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from projection_server.simulation import Job
-from projection_server.simulation.pancake import (MAX_SEGMENTS, particles_layout,
+from projection_server.simulation.objects.pancake import (MAX_SEGMENTS, particles_layout,
                                                    REFERENCE_LINKS, rings_layout)
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario

@@ -10,8 +10,8 @@ import pytest
 
 from projection_server import projection
 from projection_server.simulation import Job, ProjectionError
-from projection_server.simulation.scenario import (
-    accepted_properties, ALIASES, CLASSES, parse_scenario)
+from projection_server.simulation import objects
+from projection_server.simulation.scenario import accepted_properties, parse_scenario
 
 
 def kind_of(call, *args):
@@ -104,12 +104,19 @@ def kb(goal):
     return json.loads(out)
 
 
+def test_the_knowledge_bases_simulator_classes_are_the_registered_object_classes():
+    classes = kb('findall(S, (kb_class(C), catch(kb_simulator_class(C, S), '
+                 'error(domain_error(_, _), _), fail)), Ss), sort(Ss, Sorted), '
+                 'json_write(current_output, Sorted)')
+    assert classes == objects.names()
+
+
 def test_the_knowledge_base_offers_exactly_the_properties_the_simulator_honours():
-    offered = kb('findall(C-K, (member(C, ' + json.dumps(sorted(CLASSES)).replace('"', '')
+    offered = kb('findall(C-K, (member(C, ' + json.dumps(objects.names()).replace('"', '')
                  + '), kb_class_properties(C, K)), Ps), dict_pairs(D, c, Ps), '
                  'json_write_dict(current_output, D)')
-    for cls in CLASSES:
-        aliases = set(ALIASES.get(cls, {}))
+    for cls in objects.names():
+        aliases = set(objects.get(cls).aliases)
         honoured = set(accepted_properties(cls))
         assert set(offered[cls]) <= honoured | aliases, cls
         # The factory's particle pancake is given by a list of points, not a KB value.
@@ -117,7 +124,7 @@ def test_the_knowledge_base_offers_exactly_the_properties_the_simulator_honours(
 
 
 def test_class_defaults_and_factory_objects_use_only_honoured_properties():
-    classes = json.dumps(sorted(CLASSES)).replace('"', '')
+    classes = json.dumps(objects.names()).replace('"', '')
     defaults = kb(f'findall(C-D, (member(C, {classes}), kb_class_defaults(C, D)), Ps), '
                   'dict_pairs(J, c, Ps), json_write_dict(current_output, J)')
     for cls, values in defaults.items():

@@ -1,4 +1,4 @@
-"""The pancake as a deformable body (Kunze et al. 2011, sec. IV-C, Fig. 7).
+"""``pancake``: a deformable body of jointed segments (Kunze et al. 2011, sec. IV-C, Fig. 7).
 
 A pancake is one PyBullet multibody: a tree of flat *segments* joined by spherical joints.
 The root segment is the multibody's base, every other segment a link whose parent is the
@@ -46,13 +46,18 @@ import numpy as np
 
 from projection_server.bags import REFERENCE_LINKS
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation.objects.registry import (FRACTION, NAME, NONNEGATIVE,
+                                                           ObjectClass, PAIRS, POINTS,
+                                                           POSITIVE, Property, register,
+                                                           REQUIRED)
 from projection_server.simulation.physics import Body, Shape
 
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['MAX_SEGMENTS', 'PancakeSprings', 'REFERENCE_LINKS', 'Segment', 'build_pancake',
+__all__ = ['MAX_SEGMENTS', 'PANCAKE', 'PancakeSprings', 'REFERENCE_LINKS', 'Segment',
+           'build_pancake',
            'particles_layout', 'rings_layout']
 
 COLOR = (0.85, 0.65, 0.3, 1.0)
@@ -293,3 +298,29 @@ class PancakeSprings:
 
     def sample(self) -> tuple[float, float, bool]:
         return self.load, 0.0, False
+
+
+PANCAKE = register(ObjectClass(
+    name='pancake',
+    properties=(
+        Property('radius', REQUIRED, POSITIVE, 'm'),
+        Property('thickness', REQUIRED, POSITIVE, 'm'),
+        Property('mass', REQUIRED, POSITIVE, 'kg'),
+        Property('friction', 0.5, NONNEGATIVE),
+        Property('restitution', 0.0, FRACTION),
+        # "rings" (a centre disc and rings of segments) or "particles" (one segment per
+        # given offset): see the module doc.
+        Property('model', 'rings', NAME),
+        Property('joint_stiffness', 0.05, POSITIVE, 'N m/rad'),
+        Property('joint_damping', 0.001, NONNEGATIVE, 'N m s/rad'),
+        Property('joint_radius', 0.015, POSITIVE, 'm'),
+        Property('ring_count', 3, POSITIVE),
+        Property('segment_count', 8, POSITIVE),
+        Property('particles', None, POINTS, 'm', 'offsets of the "particles" model'),
+        Property('joints', None, PAIRS, '', '[parent, child] pairs of the "particles" model'),
+    ),
+    fixed={'shape': 'disc'},
+    aliases={'diameter': ('radius', 0.5), 'height': ('thickness', 1.0)},
+    build=build_pancake,
+    doc=__doc__.splitlines()[0].strip('"'),
+))

@@ -1,0 +1,58 @@
+"""What the builders of several object classes share: surfaces, poses, primitive bodies,
+and lifting a spawned body clear of what it would otherwise penetrate."""
+
+from __future__ import annotations
+
+from typing import Any, TYPE_CHECKING
+
+from projection_server.simulation.physics import Body, Shape
+
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Physics
+    from projection_server.simulation.scenario import Entity
+
+__all__ = ['SPAWN_CLEARANCE', 'lift_clear', 'orientation', 'primitive', 'surface']
+
+SPAWN_CLEARANCE = 1e-4   # m left between a spawned body and what it would otherwise touch
+
+
+def orientation(client: Any, entity: Entity) -> tuple[float, ...]:
+    """The entity's orientation as a quaternion (x, y, z, w)."""
+    return client.getQuaternionFromEuler(entity.pose.rpy)
+
+
+def surface(client: Any, body_id: int, props: dict[str, Any]) -> None:
+    """The body's friction and restitution from its properties."""
+    client.changeDynamics(body_id, -1, lateralFriction=props['friction'],
+                          restitution=props['restitution'])
+
+
+def primitive(physics: Physics, entity: Entity, kind: str, size: tuple[float, float, float],
+              color: tuple[float, float, float, float]) -> None:
+    """A box or cylinder (``size``: full extents) at the entity's pose, of its mass."""
+    c, p = physics.client, entity.properties
+    if kind == 'box':
+        shape = c.createCollisionShape(c.GEOM_BOX, halfExtents=[s / 2 for s in size])
+    else:
+        shape = c.createCollisionShape(c.GEOM_CYLINDER, radius=size[0] / 2, height=size[2])
+    mass = p['mass']
+    body = c.createMultiBody(mass, shape, -1, entity.pose.xyz, orientation(c, entity))
+    surface(c, body, p)
+    physics.add_body(Body(entity.name, entity.cls, body, mass == 0.0,
+                          Shape(kind if kind == 'box' else 'cylinder', size, color)))
+
+
+def lift_clear(physics: Physics, body_id: int) -> None:
+    """Raise a newly spawned body out of any body it penetrates (a pose given as the
+    nominal contact, e.g. an egg lying on the table, touches within Bullet's margins)."""
+    c = physics.client
+    for _ in range(4):
+        depth = max((-p[8] for other in physics.bodies.values() if other.body_id != body_id
+                     for p in c.getClosestPoints(body_id, other.body_id, SPAWN_CLEARANCE)),
+                    default=-SPAWN_CLEARANCE)
+        if depth <= -SPAWN_CLEARANCE:
+            return
+        position, quaternion = c.getBasePositionAndOrientation(body_id)
+        c.resetBasePositionAndOrientation(
+            body_id, (position[0], position[1], position[2] + depth + SPAWN_CLEARANCE),
+            quaternion)

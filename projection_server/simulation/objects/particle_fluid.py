@@ -1,0 +1,110 @@
+"""``particle_fluid``: ``particle_count`` spheres, registered as one :class:`Fluid` (contacts
+are reported under the fluid's name), their velocities damped by the fluid's ``damping``
+(viscosity: Bullet decelerates a particle by ``damping * v * (1 + |v|)``). With a
+``container`` (an entity built before it, e.g. the owning cup) they fill its inside from
+the bottom in hexagonal layers; without one they form a cubic block at the pose."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, TYPE_CHECKING
+
+import numpy as np
+
+from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation.objects.common import surface
+from projection_server.simulation.objects.registry import (FRACTION, NAME, NONNEGATIVE,
+                                                           ObjectClass, POSITIVE, Property,
+                                                           register, REQUIRED)
+from projection_server.simulation.physics import Body, Fluid
+
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Physics
+    from projection_server.simulation.scenario import Entity
+
+__all__ = ['PARTICLE_FLUID']
+
+PARTICLE_GAP = 1.05      # spacing of spawned particles relative to their diameter
+
+
+def build(physics: Physics, entity: Entity) -> None:
+    c, p = physics.client, entity.properties
+    count, radius = int(p['particle_count']), p['particle_radius']
+    container = p.get('container')
+    if container is not None:
+        if container not in physics.containers:
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                                  f'{entity.name}: container {container!r} is not built '
+                                  'before it or is not a container')
+        positions = _container_filling(physics, container, count, radius)
+    else:
+        positions = _block(entity.pose.xyz, count, radius)
+    shape = c.createCollisionShape(c.GEOM_SPHERE, radius=radius)
+    fluid = physics.add_fluid(Fluid(entity.name, radius, []))
+    for i, position in enumerate(positions):
+        body = c.createMultiBody(p['particle_mass'], shape, -1, position)
+        surface(c, body, p)
+        c.changeDynamics(body, -1, rollingFriction=p['rolling_friction'],
+                         spinningFriction=p['spinning_friction'],
+                         linearDamping=p['damping'], angularDamping=p['damping'])
+        fluid.body_ids.append(body)
+        physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False, None,
+                              group=entity.name))
+
+
+def _block(centre: Any, count: int, radius: float) -> list[list[float]]:
+    side = math.ceil(count ** (1 / 3))
+    spacing = 2 * PARTICLE_GAP * radius
+    offset = (side - 1) * spacing / 2
+    return [[centre[k] + (n * spacing - offset) for k, n in
+             enumerate((i % side, (i // side) % side, i // (side * side)))]
+            for i in range(count)]
+
+
+def _container_filling(physics: Physics, name: str, count: int,
+                       radius: float) -> list[list[float]]:
+    """World positions of ``count`` particles in hexagonal layers inside a container, from
+    its floor up (layers above the rim if they do not fit)."""
+    inside = physics.containers[name]
+    spacing = 2 * PARTICLE_GAP * radius
+    reach = inside.radius - radius * PARTICLE_GAP
+    layer = []
+    rows = int(reach // (spacing * math.sqrt(3) / 2))
+    for j in range(-rows, rows + 1):
+        y = j * spacing * math.sqrt(3) / 2
+        shift = spacing / 2 if j % 2 else 0.0
+        columns = int(reach // spacing) + 1
+        for i in range(-columns, columns + 1):
+            x = i * spacing + shift
+            if x * x + y * y <= reach * reach:
+                layer.append((x, y))
+    if not layer:
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'particles do not fit into {name!r}')
+    position, quaternion = physics.pose(name)
+    rot = np.asarray(physics.client.getMatrixFromQuaternion(quaternion)).reshape(3, 3)
+    out = []
+    for k in range(count):
+        x, y = layer[k % len(layer)]
+        z = inside.bottom + radius * PARTICLE_GAP + (k // len(layer)) * spacing
+        out.append(list(np.asarray(position) + rot @ np.array([x, y, z])))
+    return out
+
+
+PARTICLE_FLUID = register(ObjectClass(
+    name='particle_fluid',
+    properties=(Property('particle_count', REQUIRED, POSITIVE),
+                Property('particle_radius', REQUIRED, POSITIVE, 'm'),
+                Property('particle_mass', REQUIRED, POSITIVE, 'kg'),
+                Property('friction', 0.1, NONNEGATIVE),
+                Property('restitution', 0.0, FRACTION),
+                Property('rolling_friction', 0.0, NONNEGATIVE, 'm'),
+                Property('spinning_friction', 0.0, NONNEGATIVE, 'm'),
+                Property('damping', 5.0, NONNEGATIVE, '1/s', 'viscosity'),
+                Property('container', None, NAME, '', 'the entity it fills')),
+    fixed={'shape': 'sphere'},
+    aliases={'count': ('particle_count', 1.0)},
+    build=build,
+    fluid_role=lambda entity: ('fluid', entity.properties['particle_radius']),
+    doc=' '.join(__doc__.split('\n\n')[0].split()),
+))

@@ -1,0 +1,124 @@
+"""``pr2``: the PR2's parallel-jaw gripper on a gantry (lift along z, approach along x of
+its base frame), parked :data:`PARK_HEIGHT` above the robot's pose until a program places
+it. No arm is simulated.
+
+The gripper's data are a URDF and a YAML description beside it (``assets/<name>.urdf`` +
+``.yaml``, ``<name>`` the robot's ``gripper`` or the stem of its gripper entity's ``urdf``):
+which joints lift, approach and close the fingers, the collision box and outward normal of
+each finger pad, the pads' rubber stiffness and rim radius, the gantry's force limit.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+from typing import Any, TYPE_CHECKING
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation.physics import Body, Gripper, Pad, Shape
+from projection_server.simulation.robots.registry import assets_dir, register, RobotModel
+
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Physics
+    from projection_server.simulation.scenario import Entity
+
+__all__ = ['PARK_HEIGHT', 'PR2', 'TRACKING_RATE']
+
+PARK_HEIGHT = 1.0   # m above the robot's pose, out of the way until a program moves it
+TRACKING_RATE = 24.0     # 1/s: position control's error correction (0.1 per step at 240 Hz)
+
+
+def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> None:
+    """The robot's gripper on its gantry; ``gripper`` is the gripper's own entity, if the
+    scenario describes it (its friction and asset then come from there)."""
+    c = physics.client
+    asset = (Path(gripper.properties['urdf']).stem if gripper is not None
+             else entity.properties['gripper'])
+    spec = _gripper_spec(asset)
+    urdf = assets_dir() / spec['urdf']
+    x, y, z = entity.pose.xyz
+    body_id = c.loadURDF(str(urdf), (x, y, z + PARK_HEIGHT), useFixedBase=True)
+    joints, links = {}, {}
+    for j in range(c.getNumJoints(body_id)):
+        info = c.getJointInfo(body_id, j)
+        joints[info[1].decode()] = j
+        links[j] = info[12].decode()
+    link_index = {name: j for j, name in links.items()}
+    try:
+        joint_map = {'lift': joints[spec['joints']['lift']],
+                     'approach': joints[spec['joints']['approach']],
+                     'fingers': [joints[n] for n in spec['joints']['fingers']]}
+        boxes = _urdf_boxes(urdf)
+        pads = [_pad(link_index[pad['link']], pad, boxes[pad['collision']],
+                     float(spec['pad_stiffness']), float(spec['pad_rim_radius']))
+                for pad in spec['pads']]
+    except KeyError as exc:
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'gripper asset {spec["urdf"]}: unknown name {exc}') from exc
+    link_shapes: dict[int, list[tuple[Shape, tuple[float, float, float]]]] = {}
+    for box in boxes.values():
+        link_shapes.setdefault(link_index[box['link']], []).append(
+            (Shape('box', box['size'], (0.3, 0.3, 0.35, 1.0)), box['origin']))
+    limits = {'max_force': math.inf, 'max_opening': math.inf}
+    if gripper is not None:
+        limits = {key: gripper.properties[key] for key in limits}
+        for link in range(-1, c.getNumJoints(body_id)):
+            c.changeDynamics(body_id, link,
+                             lateralFriction=float(gripper.properties['friction']),
+                             restitution=float(gripper.properties['restitution']))
+        for finger in joint_map['fingers']:   # the fingers' travel ends at max_opening
+            c.changeDynamics(body_id, finger, jointUpperLimit=limits['max_opening'] / 2)
+    body = physics.add_body(Body(entity.name, entity.cls, body_id, False, None,
+                                 links=links, link_shapes=link_shapes))
+    gain = min(1.0, TRACKING_RATE / physics.settings.physics.rate_hz)
+    physics.grippers[entity.name] = Gripper(c, body.name, body_id, joint_map, pads,
+                                            float(spec['gantry_force']), position_gain=gain,
+                                            **limits)
+
+
+@functools.cache
+def _gripper_spec(name: str) -> dict[str, Any]:
+    import yaml
+
+    path = assets_dir() / f'{name}.yaml'
+    if not path.is_file():
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'unknown gripper {name!r} (no {path.name})')
+    return yaml.safe_load(path.read_text())
+
+
+@functools.cache
+def _urdf_boxes(path: Path) -> dict[str, dict[str, Any]]:
+    """Named collision boxes of a URDF: link, origin and size."""
+    boxes = {}
+    for link in ET.parse(path).getroot().iter('link'):
+        for collision in link.iter('collision'):
+            box = collision.find('geometry/box')
+            if box is None or not collision.get('name'):
+                continue
+            origin = collision.find('origin')
+            xyz = origin.get('xyz', '0 0 0') if origin is not None else '0 0 0'
+            boxes[collision.get('name')] = {
+                'link': link.get('name'),
+                'origin': tuple(float(v) for v in xyz.split()),
+                'size': tuple(float(v) for v in box.get('size').split())}
+    return boxes
+
+
+def _pad(link: int, pad: dict[str, Any], box: dict[str, Any], stiffness: float,
+         rim_radius: float) -> Pad:
+    normal = np.asarray(pad['normal'], dtype=float)
+    axis = int(np.argmax(np.abs(normal)))
+    size = np.asarray(box['size'])
+    centre = np.asarray(box['origin']) + normal * size[axis] / 2
+    others = [i for i in range(3) if i != axis]
+    axes = tuple(tuple(float(v) for v in np.eye(3)[i]) for i in others)
+    return Pad(link, pad['link'], tuple(centre), tuple(normal), axes,
+               (size[others[0]] / 2, size[others[1]] / 2), stiffness, rim_radius)
+
+
+PR2 = register(RobotModel('pr2', build, doc=' '.join(__doc__.split('\n\n')[0].split())))
