@@ -50,7 +50,7 @@ class Monitor:
         # The robot's links hang off their URDF parents (a tf chain under the robot);
         # other multibodies' links, like their bases, off the world.
         self._parents = {body.name: _link_parents(physics, body)
-                         for body in physics.bodies.values() if body.cls == 'robot'}
+                         for body in physics.bodies.values() if body.driven}
         self._frames: list[tuple[Any, ...]] | None = None
         self._tf: tuple[tuple[str, str], ...] = ()
         self._tf_pack: Any = None

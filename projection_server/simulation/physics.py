@@ -66,6 +66,9 @@ class Body:
     links: dict[int, str] = field(default_factory=dict)   # link index -> link name
     link_shapes: dict[int, list[tuple[Shape, Vec3]]] = field(default_factory=dict)  # + offset
     group: str | None = None   # the particle fluid this body is a particle of
+    # A robot's: moved by its actuators, not by the world (it is not settled; its links
+    # are logged as a chain under their parents).
+    driven: bool = False
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,7 @@ def settle(physics: Physics) -> float:
     rate = physics.settings.physics.rate_hz
     chunk = max(1, round(SETTLE_CHECK * rate))
     moving = [b.body_id for b in physics.bodies.values()
-              if not b.static and b.cls != 'robot']
+              if not b.static and not b.driven]
     steps = 0
     while steps < SETTLE_MAX * rate:
         for _ in range(chunk):

@@ -7,6 +7,7 @@ import math
 from typing import Any, Callable, Protocol, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation import plugins
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -16,7 +17,10 @@ if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Scenario
 
-__all__ = ['Parameter', 'Program', 'Task', 'describe', 'get', 'register']
+__all__ = ['ENTRY_POINTS', 'Parameter', 'Program', 'Task', 'describe', 'get', 'register']
+
+# Programs of other installed packages (projection_server.simulation.plugins).
+ENTRY_POINTS = 'projection_server.programs'
 
 
 @dataclass(frozen=True)
@@ -134,6 +138,7 @@ def get(name: str) -> Program:
     Raises:
         ProjectionError: kind ``unknown_program``.
     """
+    plugins.load(ENTRY_POINTS)
     try:
         return _PROGRAMS[name]
     except (KeyError, TypeError):
@@ -144,4 +149,5 @@ def get(name: str) -> Program:
 
 def describe() -> list[dict[str, Any]]:
     """Every program with its formal parameters, for Prolog (sorted by name)."""
+    plugins.load(ENTRY_POINTS)
     return [_PROGRAMS[name].describe() for name in sorted(_PROGRAMS)]
