@@ -62,50 +62,26 @@ The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass, field
 import json
 import math
 import os
-from typing import Any, NamedTuple, TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
 from projection_server.bags.schema import REFERENCE_LINKS
-from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.settings import TimelineSettings
 from projection_server.timeline import pouring, turning
 from projection_server.timeline.intervals import fluent_intervals, holds_at, Interval
+from projection_server.timeline.samples import Samples
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable, Iterator
+    from collections.abc import Iterable
 
     from projection_server.bags.schema import Record
+    from projection_server.timeline.samples import Sample
 
 __all__ = ['translate_records']
-
-class _Gripper(NamedTuple):
-    command: str
-    finger_links: list[str]
-
-
-class _Object(NamedTuple):
-    load: float
-    load_limit: float
-    broken: bool
-
-
-@dataclass(slots=True)
-class _Sample:
-    """What one monitoring step logged."""
-
-    t: float
-    poses: _Poses = field(default_factory=lambda: _Poses())
-    moving: set[str] = field(default_factory=set)
-    # (body_a, link_a, body_b, link_b, normal force, normal z)
-    contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
-    grippers: dict[str, _Gripper] = field(default_factory=dict)
-    objects: dict[str, _Object] = field(default_factory=dict)
-    particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
 
 
 def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
@@ -119,7 +95,7 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
     Raises:
         ProjectionError: kind ``bag_error`` if the records are not a projection's.
     """
-    samples = _Samples()
+    samples = Samples()
     for record in records:
         samples.add(*record)
     info, samples_ = samples.finish(bag)
@@ -141,53 +117,6 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
     }
 
 
-class _Samples:
-    """Collects the monitoring samples of a projection, one record at a time."""
-
-    def __init__(self) -> None:
-        self.info: Any = None
-        self.by_time: dict[int, _Sample] = {}
-        self.static: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        self.particles: dict[int, dict[str, np.ndarray]] = {}
-
-    def add(self, kind: str, t_ns: int, data: Any) -> None:
-        if kind == 'info':
-            self.info = data
-            return
-        if kind == 'tf_static':
-            self.static.update(_poses(data))
-            return
-        if kind == 'particles':   # they make no sample of their own
-            self.particles.setdefault(t_ns, {}).update(data)
-            return
-        sample = self.by_time.get(t_ns)
-        if sample is None:
-            sample = self.by_time[t_ns] = _Sample(t_ns / 1e9)
-        if kind == 'tf':
-            sample.poses.add(data)
-            sample.moving.update(child for _, child, _, _ in data if '/' not in child)
-        elif kind == 'contacts':
-            sample.contacts = data
-        elif kind == 'gripper':
-            name, command, finger_links = data
-            sample.grippers[name] = _Gripper(command, finger_links)
-        elif kind == 'objects':
-            sample.objects = {name: _Object(*state) for name, *state in data}
-
-    def finish(self, bag: str | os.PathLike[str]) -> tuple[Any, list[_Sample]]:
-        if self.info is None:
-            raise ProjectionError(ErrorKind.BAG_ERROR, f'{bag}: no projection info')
-        for t_ns, fluids in self.particles.items():
-            if t_ns in self.by_time:
-                self.by_time[t_ns].particles = fluids
-        samples = [self.by_time[t] for t in sorted(self.by_time)]
-        _compose_all([sample.poses for sample in samples])
-        for sample in samples:
-            for name, pose in self.static.items():
-                sample.poses.setdefault(name, pose)
-        return self.info, samples
-
-
 def _plain(value: Any) -> Any:
     """Numbers as Python's own (in memory they may still be numpy scalars)."""
     if isinstance(value, np.generic):
@@ -203,114 +132,7 @@ def _sorted_events(events: list[list[Any]]) -> list[list[Any]]:
                                                                               r[1]))]
 
 
-def _poses(transforms: Iterable[tuple[str, str, Any, Any]]
-           ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """World poses of the frames of a tf message (``(parent, child, position, quaternion)``
-    each): see :class:`_Poses`."""
-    poses = _Poses()
-    poses.add(transforms)
-    return dict(poses.items())
-
-
-class _Poses:
-    """World poses ``(position, rotation matrix)`` of a sample's frames by name, each
-    composed when first asked for (most frames of a robot's link chain never are).
-
-    A frame whose parent is a frame before it in the same tf message (a robot's link chain,
-    parents first) is composed with it; other parents are the world.
-    """
-
-    __slots__ = ('_frames', 'messages')
-
-    def __init__(self) -> None:
-        # name -> [parent's entry or None, position, quaternion, pose once composed]
-        self._frames: dict[str, list[Any]] = {}
-        self.messages: list[list[tuple[str, str, Any, Any]]] = []
-
-    def add(self, transforms: Iterable[tuple[str, str, Any, Any]]) -> None:
-        """The frames of one tf message."""
-        transforms = list(transforms)
-        entries: dict[str, list[Any]] = {}
-        for parent, child, position, quaternion in transforms:
-            entries[child] = [entries.get(parent), position, quaternion, None]
-        self._frames.update(entries)
-        self.messages.append(transforms)
-
-    def __contains__(self, name: str) -> bool:
-        return name in self._frames
-
-    def __getitem__(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        return _composed(self._frames[name])
-
-    def get(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
-        entry = self._frames.get(name)
-        return None if entry is None else _composed(entry)
-
-    def setdefault(self, name: str, pose: tuple[np.ndarray, np.ndarray]) -> None:
-        if name not in self._frames:
-            self._frames[name] = [None, None, None, pose]
-
-    def items(self) -> Iterator[tuple[str, tuple[np.ndarray, np.ndarray]]]:
-        return ((name, _composed(entry)) for name, entry in self._frames.items())
-
-
-def _compose_all(samples: list[_Poses]) -> None:
-    """Compose the frames of all samples whose one tf message has the same frames, frame
-    by frame for all of them at once: the same numbers as :func:`_composed` (element-wise
-    arithmetic, and numpy's matrix products of a stack are those of each matrix)."""
-    layouts: dict[tuple[tuple[str, str], ...], list[_Poses]] = defaultdict(list)
-    for poses in samples:
-        if len(poses.messages) == 1:
-            layouts[tuple((parent, child) for parent, child, _, _ in poses.messages[0])
-                    ].append(poses)
-    for layout, group in layouts.items():
-        if len(group) < 2:
-            continue
-        messages = [poses.messages[0] for poses in group]
-        positions = np.array([[frame[2] for frame in m] for m in messages], dtype=float)
-        quaternions = np.array([[frame[3] for frame in m] for m in messages], dtype=float)
-        composed: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for k, (parent_frame, child) in enumerate(layout):
-            position = np.ascontiguousarray(positions[:, k])
-            rotation = _matrices(quaternions[:, k])
-            parent = composed.get(parent_frame)
-            if parent is not None:
-                position = parent[0] + np.matmul(parent[1], position[:, :, None])[:, :, 0]
-                rotation = np.matmul(parent[1], rotation)
-            composed[child] = (position, rotation)
-            for poses, p, r in zip(group, position, rotation):
-                poses._frames[child][3] = (p, r)
-
-
-def _matrices(q: np.ndarray) -> np.ndarray:
-    """:func:`_matrix` of each row of ``q`` (n x 4)."""
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    m = np.empty((len(q), 3, 3))
-    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    m[:, 0, 1] = 2 * (x * y - z * w)
-    m[:, 0, 2] = 2 * (x * z + y * w)
-    m[:, 1, 0] = 2 * (x * y + z * w)
-    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    m[:, 1, 2] = 2 * (y * z - x * w)
-    m[:, 2, 0] = 2 * (x * z - y * w)
-    m[:, 2, 1] = 2 * (y * z + x * w)
-    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return m
-
-
-def _composed(entry: list[Any]) -> tuple[np.ndarray, np.ndarray]:
-    pose = entry[3]
-    if pose is None:
-        parent, t, q = entry[0], entry[1], entry[2]
-        position, rotation = np.array(t), _matrix(q)
-        if parent is not None:
-            parent = _composed(parent)
-            position, rotation = parent[0] + parent[1] @ position, parent[1] @ rotation
-        pose = entry[3] = (position, rotation)
-    return pose
-
-
-def _upside_down(sample: _Sample, body: str, references: list[str]) -> bool:
+def _upside_down(sample: Sample, body: str, references: list[str]) -> bool:
     """Whether the segments of ``body`` (its frame and link frames ``body/...``, with the
     reference links of :data:`~projection_server.bags.REFERENCE_LINKS`, whose
     frames are ``references``) are upside down; False for bodies without them."""
@@ -323,14 +145,6 @@ def _upside_down(sample: _Sample, body: str, references: list[str]) -> bool:
     return turning.is_upside_down(normal)
 
 
-def _matrix(q: tuple[float, float, float, float]) -> np.ndarray:
-    x, y, z, w = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
 # Fluents of an object's state (not of its relations): an interval of one that spans the end
 # of a drop of its object is reported as two, before and after the drop, so that a state
 # the object is in when it lands holds after the drop (what section II's query asks).
@@ -340,7 +154,7 @@ _STATES = frozenset({'broken', 'upside_down'})
 class _Timeline:
     """Fluents, events and quantities of a list of samples."""
 
-    def __init__(self, samples: list[_Sample], settings: TimelineSettings):
+    def __init__(self, samples: list[Sample], settings: TimelineSettings):
         self.samples = samples
         self.settings = settings
         self.times = [x.t for x in samples]
@@ -539,7 +353,7 @@ class _Timeline:
                 return float(sample.poses[obj][0][2])
         return math.nan
 
-    def _relative_pose(self, obj: str, sample: _Sample
+    def _relative_pose(self, obj: str, sample: Sample
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Pose of ``obj`` in the frame between the fingers of the gripper holding it, and
         that frame's rotation in the world."""
@@ -557,7 +371,7 @@ class _Timeline:
 class _Fluids:
     """Events and quantities of the particle fluids of a projection (none without fluids)."""
 
-    def __init__(self, samples: list[_Sample], scenario: Any):
+    def __init__(self, samples: list[Sample], scenario: Any):
         self.samples = [x for x in samples if x.particles]
         self.radius: dict[str, float] = {}
         self.makers: dict[str, pouring.Disc] = {}
@@ -581,7 +395,7 @@ class _Fluids:
         floor = min((d.top for d in self.makers.values()), default=0.0)
         self.table_top = max(tables, default=floor)
 
-    def _vessels(self, sample: _Sample) -> dict[str, pouring.Vessel]:
+    def _vessels(self, sample: Sample) -> dict[str, pouring.Vessel]:
         return {name: pouring.Vessel(*sample.poses[name], *inside)
                 for name, inside in self.cups.items() if name in sample.poses}
 
