@@ -151,8 +151,8 @@ def held_egg_timeline(offset, release_at=None):
     """The timeline of an egg held between two fingers that moves by ``offset`` (x, y, z in
     the world, the fingers' frame) between 0.5 s and 1 s, and leaves the fingers at
     ``release_at`` [s] if given, while the gripper stays closed."""
+    from projection_server.timeline.rules import Rules
     from projection_server.timeline.samples import Gripper, Poses, Sample
-    from projection_server.timeline.translate import _Timeline
 
     eye = np.eye(3)
     samples = []
@@ -172,7 +172,7 @@ def held_egg_timeline(offset, release_at=None):
                               grippers={'g': gripper}))
     from projection_server.simulation import load_settings
 
-    timeline = _Timeline(samples, load_settings().timeline)
+    timeline = Rules(samples, load_settings().timeline)
     return [e for e in timeline.events() if e[0] in ('slip', 'shift')]
 
 
