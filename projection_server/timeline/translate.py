@@ -7,7 +7,10 @@ projection's checked scenario. Every monitoring sample
 (one ``ContactArray``, ``/tf``, ``GripperState`` and ``ObjectStateArray`` per step) gives a
 truth value of each fluent; fluents hold on maximal intervals of true samples, with gaps
 shorter than ``timeline.gap_merge`` merged; events are read off those intervals. The
-thresholds are the ``timeline`` settings recorded in the bag itself.
+thresholds are the ``timeline`` settings recorded in the bag itself. The translation has
+three stages: :mod:`~projection_server.timeline.samples` makes the samples of the records,
+:mod:`~projection_server.timeline.rules` reads the fluents, events and quantities of bodies
+off them, and :mod:`~projection_server.timeline.fluids` those of particle fluids.
 
 Fluents (arguments are entity names):
 
@@ -68,7 +71,7 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from projection_server.settings import TimelineSettings
-from projection_server.timeline import pouring
+from projection_server.timeline.fluids import Fluids
 from projection_server.timeline.rules import Rules, sorted_events
 from projection_server.timeline.samples import Samples
 
@@ -76,7 +79,6 @@ if TYPE_CHECKING:
     from collections.abc import Iterable
 
     from projection_server.bags.schema import Record
-    from projection_server.timeline.samples import Sample
 
 __all__ = ['translate_records']
 
@@ -98,7 +100,7 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
     info, samples_ = samples.finish(bag)
     settings_json = json.loads(info.settings_json)
     rules = Rules(samples_, TimelineSettings(**settings_json['timeline']))
-    fluids = _Fluids(samples_, scenario)
+    fluids = Fluids(samples_, scenario)
     return {
         'fluents': rules.fluents(),
         'events': sorted_events(rules.events() + fluids.events()),
@@ -121,84 +123,3 @@ def _plain(value: Any) -> Any:
     if isinstance(value, list):
         return [_plain(v) for v in value]
     return value
-
-
-class _Fluids:
-    """Events and quantities of the particle fluids of a projection (none without fluids)."""
-
-    def __init__(self, samples: list[Sample], scenario: Any):
-        self.samples = [x for x in samples if x.particles]
-        self.radius: dict[str, float] = {}
-        self.makers: dict[str, pouring.Disc] = {}
-        self.cups: dict[str, Any] = {}
-        tables = []
-        if not self.samples:
-            return
-        for entity in scenario.entities:
-            p, (x, y, z) = entity.properties, entity.pose.xyz
-            if entity.cls == 'particle_fluid':
-                self.radius[entity.name] = p['particle_radius']
-            elif entity.cls == 'pancake_maker':
-                self.makers[entity.name] = pouring.Disc((x, y), z + p['height'] / 2,
-                                                        p['radius'])
-            elif entity.cls == 'cup':
-                wall = p['wall_thickness']
-                self.cups[entity.name] = (p['radius'] - wall, -p['height'] / 2 + wall,
-                                          p['height'] / 2)
-            elif entity.cls == 'table':
-                tables.append(p.get('height', z))
-        floor = min((d.top for d in self.makers.values()), default=0.0)
-        self.table_top = max(tables, default=floor)
-
-    def _vessels(self, sample: Sample) -> dict[str, pouring.Vessel]:
-        return {name: pouring.Vessel(*sample.poses[name], *inside)
-                for name, inside in self.cups.items() if name in sample.poses}
-
-    def events(self) -> list[list[Any]]:
-        events = []
-        for fluid, radius in self.radius.items():
-            level = self.table_top + 2 * radius
-            for sample in self.samples:
-                positions = sample.particles.get(fluid)
-                if positions is not None and pouring.reached_level(positions, level).any():
-                    events.append(['spill', [fluid], sample.t, sample.t])
-                    break
-        return events
-
-    def quantities(self) -> list[list[Any]]:
-        if not self.samples:
-            return []
-        last = self.samples[-1]
-        vessels = self._vessels(last)
-        on = {name: [] for name in self.makers}
-        inside = {name: 0 for name in vessels}
-        rows: list[list[Any]] = []
-        for fluid, radius in self.radius.items():
-            positions = last.particles.get(fluid, np.zeros((0, 3)))
-            placed = np.zeros(len(positions), dtype=bool)
-            # Vessels first: the bottom of a cup held low over a maker is within the pile
-            # height above it, and what is in the cup is not on the maker.
-            for name, vessel in vessels.items():
-                mask = pouring.in_vessel(positions, vessel, radius) & ~placed
-                inside[name] += int(mask.sum())
-                placed |= mask
-            for name, disc in self.makers.items():
-                mask = pouring.on_disc(positions, disc, radius) & ~placed
-                on[name].append(positions[mask])
-                placed |= mask
-            rows.append(['particles_spilled', [fluid], int((~placed).sum())])
-        for name, disc in self.makers.items():
-            points = np.concatenate(on[name]) if on[name] else np.zeros((0, 3))
-            xy = points[:, :2]
-            rows.append(['particles_on', [name], len(xy)])
-            rows.append(['particles_on_positions', [name],
-                         [[float(v) for v in point] for point in points]])
-            offset = pouring.centroid_offset(xy, disc.centre)
-            if offset is not None:
-                rows.append(['centroid_offset_x', [name], offset[0]])
-                rows.append(['centroid_offset_y', [name], offset[1]])
-            round_ = pouring.roundness(xy)
-            if round_ is not None:
-                rows.append(['roundness', [name], round_])
-        rows += [['particles_in', [name], count] for name, count in sorted(inside.items())]
-        return rows
