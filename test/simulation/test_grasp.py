@@ -151,7 +151,8 @@ def held_egg_timeline(offset, release_at=None):
     """The timeline of an egg held between two fingers that moves by ``offset`` (x, y, z in
     the world, the fingers' frame) between 0.5 s and 1 s, and leaves the fingers at
     ``release_at`` [s] if given, while the gripper stays closed."""
-    from projection_server.timeline.translate import _Gripper, _Poses, _Sample, _Timeline
+    from projection_server.timeline.rules import Rules
+    from projection_server.timeline.samples import Gripper, Poses, Sample
 
     eye = np.eye(3)
     samples = []
@@ -161,17 +162,17 @@ def held_egg_timeline(offset, release_at=None):
         egg = np.array([0.0, 0.0, 1.0]) + s * np.asarray(offset)
         held = release_at is None or t < release_at
         contacts = [('egg1', '', 'g', link, 5.0, 0.0) for link in ('l', 'r')] if held else []
-        poses = _Poses()
+        poses = Poses()
         for name, pose in {'egg1': (egg, eye), 'g/l': (np.array([0.0, 0.02, 1.0]), eye),
                            'g/r': (np.array([0.0, -0.02, 1.0]), eye),
                            'g': (np.array([0.0, 0.0, 1.1]), eye)}.items():
             poses.setdefault(name, pose)
-        gripper = _Gripper(command='close', finger_links=['l', 'r'])
-        samples.append(_Sample(t, poses=poses, moving={'egg1', 'g'}, contacts=contacts,
-                               grippers={'g': gripper}))
+        gripper = Gripper(command='close', finger_links=['l', 'r'])
+        samples.append(Sample(t, poses=poses, moving={'egg1', 'g'}, contacts=contacts,
+                              grippers={'g': gripper}))
     from projection_server.simulation import load_settings
 
-    timeline = _Timeline(samples, load_settings().timeline)
+    timeline = Rules(samples, load_settings().timeline)
     return [e for e in timeline.events() if e[0] in ('slip', 'shift')]
 
 

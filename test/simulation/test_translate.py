@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from projection_server.timeline.translate import _compose_all, _Poses
+from projection_server.timeline.samples import _compose_all, Poses
 
 
 def _message(rng, layout):
@@ -28,7 +28,7 @@ def test_frames_composed_for_all_samples_are_those_of_each_sample():
     messages = [_message(rng, layout) for _ in range(60)]
     batched, single = [], []
     for message in messages:
-        for poses, out in ((_Poses(), batched), (_Poses(), single)):
+        for poses, out in ((Poses(), batched), (Poses(), single)):
             poses.add(message)
             out.append(poses)
     _compose_all(batched)

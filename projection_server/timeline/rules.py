@@ -1,0 +1,270 @@
+"""The stage of a timeline that reads the fluents, events and quantities of bodies off the
+monitoring samples (:class:`Rules`): contacts, support, grasps, breaks and flips, drops,
+loads and lift heights. Each is defined in the module doc of
+:mod:`projection_server.timeline.translate`, the one list of them all.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+import math
+from typing import Any, TYPE_CHECKING
+
+import numpy as np
+
+from projection_server.bags.schema import REFERENCE_LINKS
+from projection_server.timeline import turning
+from projection_server.timeline.intervals import fluent_intervals, holds_at
+
+if TYPE_CHECKING:
+    from projection_server.settings import TimelineSettings
+    from projection_server.timeline.intervals import Interval
+    from projection_server.timeline.samples import Sample
+
+__all__ = ['Rules', 'sorted_events']
+
+# Fluents of an object's state (not of its relations): an interval of one that spans the end
+# of a drop of its object is reported as two, before and after the drop, so that a state
+# the object is in when it lands holds after the drop (what section II's query asks).
+_STATES = frozenset({'broken', 'upside_down'})
+
+
+def sorted_events(events: list[list[Any]]) -> list[list[Any]]:
+    """Each of ``events`` once, by start, name and arguments."""
+    unique = {(e[0], tuple(e[1]), e[2], e[3]) for e in events}
+    return [[n, list(a), s, e] for n, a, s, e in sorted(unique, key=lambda r: (r[2], r[0],
+                                                                              r[1]))]
+
+
+def _upside_down(sample: Sample, body: str, references: list[str]) -> bool:
+    """Whether the segments of ``body`` (its frame and link frames ``body/...``, with the
+    reference links of :data:`~projection_server.bags.REFERENCE_LINKS`, whose
+    frames are ``references``) are upside down; False for bodies without them."""
+    a, b = (sample.poses.get(name) for name in references)
+    if a is None or b is None or body not in sample.poses:
+        return False
+    positions = [pose[0] for name, pose in sample.poses.items()
+                 if name == body or name.startswith(body + '/')]
+    normal = turning.upper_normal(np.array(positions), sample.poses[body][0], a[0], b[0])
+    return turning.is_upside_down(normal)
+
+
+class Rules:
+    """Fluents, events and quantities of a list of samples."""
+
+    def __init__(self, samples: list[Sample], settings: TimelineSettings):
+        self.samples = samples
+        self.settings = settings
+        self.times = [x.t for x in samples]
+        self.end = self.times[-1] if self.times else 0.0
+        self.grippers = sorted({g for x in samples for g in x.grippers})
+        # Moving bodies: logged on /tf (static ones are on /tf_static), without link frames.
+        self.bodies = sorted({name for x in samples for name in x.moving} - set(self.grippers))
+        self._booleans: dict[tuple[str, tuple[str, ...]], list[bool]] = defaultdict(
+            lambda: [False] * len(samples))
+        self._sample_fluents()
+        self._intervals = {key: fluent_intervals(self.times, values, self.settings.gap_merge)
+                           for key, values in self._booleans.items()}
+        for key, values in self._booleans.items():
+            if key[0] == 'broken':   # monotone, and a break must not be merged away
+                self._intervals[key] = fluent_intervals(self.times, values, 0.0)
+
+    # --- fluents ------------------------------------------------------------------------
+    def _sample_fluents(self) -> None:
+        cos_support = math.cos(self.settings.support_max_angle)
+        booleans = self._booleans
+        supports: list[tuple[str, tuple[str, ...]]] = []   # the supported_by keys
+        references = {body: [f'{body}/{link}' for link in REFERENCE_LINKS]
+                      for body in self.bodies}
+        for i, sample in enumerate(self.samples):
+            touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
+            held: set[str] = set()
+            for body_a, link_a, body_b, link_b, force, normal_z in sample.contacts:
+                if force < self.settings.contact_force_min or body_a == body_b:
+                    continue
+                self._booleans[('contact', tuple(sorted((body_a, body_b))))][i] = True
+                touching[body_a].add((body_b, link_b))
+                touching[body_b].add((body_a, link_a))
+                for obj, support, up in ((body_a, body_b, normal_z),
+                                         (body_b, body_a, -normal_z)):
+                    if support not in self.grippers and up >= cos_support:
+                        key = ('supported_by', (obj, support))
+                        if key not in booleans:   # in the order they are first seen
+                            supports.append(key)
+                        booleans[key][i] = True
+            for name, gripper in sample.grippers.items():
+                fingers = {(name, link) for link in gripper.finger_links}
+                for obj, links in touching.items():
+                    if fingers and fingers <= links:
+                        held.add(obj)
+                        self._booleans[('in_gripper', (obj,))][i] = True
+            for key in supports:
+                if booleans[key][i] and key[1][0] not in held:
+                    booleans[('on', key[1])][i] = True
+            for name, state in sample.objects.items():
+                if state.broken:
+                    self._booleans[('broken', (name,))][i] = True
+            for body in self.bodies:
+                if _upside_down(sample, body, references[body]):
+                    self._booleans[('upside_down', (body,))][i] = True
+
+    def fluents(self) -> list[list[Any]]:
+        """The fluents' intervals ``[name, args, start, end]``, by start, name and args."""
+        rows = []
+        drop_ends: dict[str, list[float]] | None = None
+        for (name, args), intervals in self._intervals.items():
+            for start, end in intervals:
+                if name not in _STATES:
+                    rows.append([name, list(args), start, end])
+                    continue
+                if drop_ends is None:
+                    drop_ends = defaultdict(list)
+                    for _, (obj,), _, drop_end in self._drops():
+                        drop_ends[obj].append(drop_end)
+                for piece in self._split(start, end, drop_ends[args[0]]):
+                    rows.append([name, list(args), *piece])
+        return sorted(rows, key=lambda r: (r[2], r[0], r[1]))
+
+    def _split(self, start: float, end: float, cuts: list[float]) -> list[Interval]:
+        """``start`` to ``end`` cut after each of ``cuts`` inside it: the pieces meet at
+        consecutive samples."""
+        pieces = []
+        for cut in sorted(cuts):
+            after = self._next_time(cut)
+            if start <= cut < end and after is not None:
+                pieces.append((start, cut))
+                start = after
+        return pieces + [(start, end)]
+
+    def intervals(self, name: str, *args: str) -> list[Interval]:
+        """The intervals of fluent ``name(args)`` (a state's not split at drops)."""
+        return self._intervals.get((name, args), [])
+
+    # --- events -------------------------------------------------------------------------
+    def events(self) -> list[list[Any]]:
+        """The events ``[name, args, start, end]``, each once, by start, name and args."""
+        events: list[list[Any]] = []
+        for (name, args), intervals in sorted(self._intervals.items()):
+            obj = args[0]
+            for start, end in intervals:
+                if name == 'in_gripper':
+                    events.append(['grasp', [obj], start, start])
+                    events.extend(self._grip(obj, start, end))
+                    if end < self.end and self._command_after(end) == 'open':
+                        events.append(['release', [obj], end, end])
+                elif name == 'supported_by':
+                    if end < self.end and holds_at(self.intervals('in_gripper', obj), end):
+                        events.append(['lift', [obj], end, end])
+                elif name == 'broken':
+                    events.append(['break', [obj], start, start])
+                elif name == 'upside_down':
+                    events.append(['flip', [obj], start, start])
+        events.extend(self._drops())
+        return sorted_events(events)
+
+    def _grip(self, obj: str, start: float, end: float) -> list[list[Any]]:
+        """The ``shift`` or ``slip`` of ``obj`` in its grasp from ``start`` to ``end``."""
+        limit = self.settings.slip_distance
+        reference = None
+        onset = sink_onset = start
+        shift = sunk = None
+        sink = 0.0
+        for sample in self.samples:
+            if sample.t < start or sample.t > end or self._broken_at(obj, sample.t):
+                continue
+            relative = self._relative_pose(obj, sample)
+            if relative is None:
+                continue
+            if reference is None:
+                if sample.t >= min(start + self.settings.grasp_settle, end):
+                    reference = relative
+                    onset = sink_onset = sample.t
+                continue
+            moved = relative[0] - reference[0]
+            cos_angle = (np.trace(reference[1].T @ relative[1]) - 1.0) / 2.0
+            angle = math.acos(min(1.0, max(-1.0, cos_angle)))
+            # Relative to the thresholds: 1 means moved; below 1/5 the grip still holds.
+            ratio = max(float(np.linalg.norm(moved)) / limit, angle / self.settings.slip_angle)
+            if shift is None:
+                if ratio > 1.0:
+                    shift = ['shift', [obj], onset, sample.t]
+                elif ratio <= 0.2:
+                    onset = sample.t
+            sink = -float((relative[2] @ moved)[2])   # downwards in the world
+            if sunk is None:
+                if sink > limit:
+                    sunk = (sink_onset, sample.t)
+                elif sink <= 0.2 * limit:
+                    sink_onset = sample.t
+        after = self._next_time(end)
+        if after is not None and self._command_after(end) != 'open' \
+                and not self._broken_at(obj, after):
+            return [['slip', [obj], end, end]]
+        if sunk is not None and sink > limit:
+            return [['slip', [obj], *sunk]]
+        return [shift] if shift is not None else []
+
+    def _drops(self) -> list[list[Any]]:
+        events = []
+        for obj in self.bodies:
+            contacts = [iv for (name, args), ivs in self._intervals.items()
+                        if name == 'contact' and obj in args for iv in ivs]
+            free = [not holds_at(contacts, t) for t in self.times]
+            for start, end in fluent_intervals(self.times, free, 0.0):
+                if end - start < self.settings.drop_min_duration:
+                    continue
+                if self._height(obj, end) < self._height(obj, start):
+                    events.append(['drop', [obj], start, end])
+        return events
+
+    # --- quantities ---------------------------------------------------------------------
+    def quantities(self) -> list[list[Any]]:
+        """The quantities ``[name, args, value]``."""
+        rows: list[list[Any]] = []
+        loads: dict[str, float] = {}
+        limits: dict[str, float] = {}
+        for sample in self.samples:
+            for name, state in sample.objects.items():
+                loads[name] = max(loads.get(name, 0.0), state.load)
+                if state.load_limit > 0:
+                    limits[name] = state.load_limit
+        rows += [['max_load', [name], value] for name, value in sorted(loads.items())]
+        rows += [['load_limit', [name], value] for name, value in sorted(limits.items())]
+        for obj in self.bodies:
+            heights = [float(x.poses[obj][0][2]) for x in self.samples if obj in x.poses]
+            rows.append(['lift_height', [obj], max(heights) - heights[0]])
+        return rows
+
+    # --- helpers ------------------------------------------------------------------------
+    def _next_time(self, time: float) -> float | None:
+        """The first sample time after ``time``, None at the end."""
+        return next((t for t in self.times if t > time), None)
+
+    def _command_after(self, time: float) -> str:
+        for sample in self.samples:
+            if sample.t > time and sample.grippers:
+                return next(iter(sample.grippers.values())).command
+        return ''
+
+    def _broken_at(self, obj: str, time: float) -> bool:
+        return holds_at(self.intervals('broken', obj), time)
+
+    def _height(self, obj: str, time: float) -> float:
+        for sample in self.samples:
+            if sample.t >= time and obj in sample.poses:
+                return float(sample.poses[obj][0][2])
+        return math.nan
+
+    def _relative_pose(self, obj: str, sample: Sample
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Pose of ``obj`` in the frame between the fingers of the gripper holding it, and
+        that frame's rotation in the world."""
+        for name, gripper in sample.grippers.items():
+            frames = [sample.poses.get(f'{name}/{link}') for link in gripper.finger_links]
+            if obj not in sample.poses or not frames or any(f is None for f in frames):
+                continue
+            origin = sum(f[0] for f in frames) / len(frames)
+            rot = frames[0][1]
+            position, orientation = sample.poses[obj]
+            return rot.T @ (position - origin), rot.T @ orientation, rot
+        return None
