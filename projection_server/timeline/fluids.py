@@ -22,6 +22,9 @@ class Fluids:
     """Events and quantities of the particle fluids of a projection (none without fluids)."""
 
     def __init__(self, samples: list[Sample], scenario: Any):
+        """``scenario``'s entities have a ``unit`` (their object class) whose
+        ``fluid_role(entity)`` says what they are to a fluid: a ``fluid``, a ``surface``
+        particles land on, a ``vessel`` that holds them or a ``level`` spilled on."""
         self.samples = [x for x in samples if x.particles]
         self.radius: dict[str, float] = {}
         self.makers: dict[str, pouring.Disc] = {}
@@ -29,19 +32,18 @@ class Fluids:
         tables = []
         if not self.samples:
             return
+        # What each entity is to a fluid, as its object class says (its fluid_role).
         for entity in scenario.entities:
-            p, (x, y, z) = entity.properties, entity.pose.xyz
-            if entity.cls == 'particle_fluid':
-                self.radius[entity.name] = p['particle_radius']
-            elif entity.cls == 'pancake_maker':
-                self.makers[entity.name] = pouring.Disc((x, y), z + p['height'] / 2,
-                                                        p['radius'])
-            elif entity.cls == 'cup':
-                wall = p['wall_thickness']
-                self.cups[entity.name] = (p['radius'] - wall, -p['height'] / 2 + wall,
-                                          p['height'] / 2)
-            elif entity.cls == 'table':
-                tables.append(p.get('height', z))
+            role = entity.unit.fluid_role
+            kind, *values = role(entity) if role is not None else (None,)
+            if kind == 'fluid':
+                self.radius[entity.name] = values[0]
+            elif kind == 'surface':
+                self.makers[entity.name] = pouring.Disc(*values)
+            elif kind == 'vessel':
+                self.cups[entity.name] = tuple(values)
+            elif kind == 'level':
+                tables.append(values[0])
         floor = min((d.top for d in self.makers.values()), default=0.0)
         self.table_top = max(tables, default=floor)
 

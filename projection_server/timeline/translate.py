@@ -56,8 +56,7 @@ fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
 ``particles_spilled(F)`` (neither in a cup nor on a maker) per fluid F,
 ``particles_on_positions(M)``, the world positions ``[X, Y, Z]`` [m] of the particles on M
 (what ``object_model(pancake, _{particles: Points}, E)`` builds a pancake from), and of the
-particles
-on M ``centroid_offset_x(M)``, ``centroid_offset_y(M)`` [m] (world axes, relative to M's
+particles on M ``centroid_offset_x(M)``, ``centroid_offset_y(M)`` [m] (world axes, relative to M's
 centre; left out without particles) and ``roundness(M)`` (left out below two particles).
 The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 """
