@@ -44,8 +44,11 @@ REQUIRED = object()   # a property's default: the entity must give it
 
 # What a property's value must be.
 POSITIVE, NONNEGATIVE, FRACTION, ANY = 'positive', 'nonnegative', 'fraction', 'any'
-NAME = 'name'                    # a non-empty string (a file, a model, an entity's name)
+NAME = 'name'                    # a non-empty string (a model, a link, an entity's name)
+FILE = 'file'                    # a model file's path (resolved in an asset directory)
 POINTS, PAIRS = 'points', 'pairs'   # lists of [x, y, z] / of [parent, child] indices
+VECTOR = 'vector'                # [x, y, z]
+NUMBERS, NAMES = 'numbers', 'names'   # lists of numbers / of non-empty strings
 
 @dataclass(frozen=True)
 class Property:
@@ -151,10 +154,24 @@ def check_value(entity: str, key: str, value: Any, kind: str) -> Any:
         if kind == PAIRS:
             return [tuple(int(i) for i in v) for v in value]
         return [tuple(float(x) for x in v) for v in value]
-    if kind == NAME:
+    if kind in (NAME, FILE):
         if not isinstance(value, str) or not value:
             _fail(f'{entity}: {key} must be a non-empty string')
         return value
+    if kind == VECTOR:
+        if (not isinstance(value, (list, tuple)) or len(value) != 3
+                or not all(map(is_number, value))):
+            _fail(f'{entity}: {key} must be a list of three numbers, got {value!r}')
+        return tuple(float(v) for v in value)
+    if kind == NUMBERS:
+        if not isinstance(value, (list, tuple)) or not all(map(is_number, value)):
+            _fail(f'{entity}: {key} must be a list of numbers, got {value!r}')
+        return tuple(float(v) for v in value)
+    if kind == NAMES:
+        if (not isinstance(value, (list, tuple)) or not value
+                or not all(isinstance(v, str) and v for v in value)):
+            _fail(f'{entity}: {key} must be a non-empty list of names, got {value!r}')
+        return tuple(value)
     if not is_number(value):
         _fail(f'{entity}: {key} must be a finite number, got {value!r}')
     value = float(value)
