@@ -9,6 +9,7 @@ from __future__ import annotations
 from projection_server.simulation.programs import grasp  # noqa: F401  (registers itself)
 from projection_server.simulation.programs import pour  # noqa: F401  (registers itself)
 from projection_server.simulation.programs import turn  # noqa: F401  (registers itself)
+from projection_server.simulation.programs import wait  # noqa: F401  (registers itself)
 from projection_server.simulation.programs.registry import (
     describe,
     get,
