@@ -4,8 +4,8 @@
   :func:`listed`;
 * the knowledge base's scenarios, from the server's Prolog in this process:
   :func:`kb_scenario`, :func:`prolog`;
-* a node of its own and a client of it: :func:`ros_domain`, :func:`start_node`,
-  :func:`client`;
+* a node of its own, a client of it and what its ping says: :func:`ros_domain`,
+  :func:`start_node`, :func:`client`, :class:`ServerStats`;
 * what ``/proc`` says of a node and its projection workers: :func:`worker_pids`,
   :func:`wait_warm`, :func:`rss_mb`, :func:`cpu_seconds`;
 * the floor a projection is measured against, the bare stepping of its world and program:
@@ -31,6 +31,7 @@ import argparse
 import contextlib
 import copy
 import functools
+import json
 import math
 import os
 from pathlib import Path
@@ -136,6 +137,41 @@ def client(server: str = '/projection_server', service_timeout: float = 60.0
         c.close(finish=False)
         raise RuntimeError(f'{server} did not come up')
     return c
+
+
+class ServerStats:
+    """What ``server``'s ``~/ping`` says (its pid, resident memory, live queries and
+    engines), asked from a node of this process (rclpy must be initialised).
+
+    >>> with ServerStats() as stats:
+    ...     stats()['engines']
+    """
+
+    def __init__(self, server: str = '/projection_server'):
+        import rclpy
+        from std_srvs.srv import Trigger
+
+        self._rclpy = rclpy
+        self._node = rclpy.create_node(f'bench_stats_{os.getpid()}')
+        self._ping = self._node.create_client(Trigger, f'{server.rstrip("/")}/ping')
+        self._request = Trigger.Request()
+
+    def __enter__(self) -> ServerStats:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __call__(self, timeout: float = 10.0) -> dict[str, Any] | None:
+        """The ping's JSON; None if no answer came within ``timeout`` seconds."""
+        if not self._ping.wait_for_service(timeout_sec=timeout):
+            return None
+        future = self._ping.call_async(self._request)
+        self._rclpy.spin_until_future_complete(self._node, future, timeout_sec=timeout)
+        return json.loads(future.result().message) if future.done() else None
+
+    def close(self) -> None:
+        self._node.destroy_node()
 
 
 # --- /proc ------------------------------------------------------------------------------
