@@ -35,8 +35,7 @@ class Recorder:
     """Wraps the pool's slots: (slot, sent, answered) for every projection.
 
     The local pool says nowhere when a worker is given a job and when it answers, so this
-    wraps a private method of its slots (``_Slot._receive``): the one private surface the
-    benchmarks use.
+    wraps a private method of its slots (``_Slot._receive``) until it does.
     """
 
     def __init__(self):
