@@ -23,7 +23,8 @@ query: setup
 bench: setup
 	@tools/with_env.sh python bench/query_latency.py
 	@tools/with_env.sh python bench/pipeline_overhead.py
-	@tools/with_env.sh python bench/projection_throughput.py --flat-memory 200
+	@tools/with_env.sh python bench/projection_throughput.py
+	@tools/with_env.sh python bench/flat_memory.py --solutions 200
 
 reproduce: setup
 	@tools/with_env.sh projection_reproduce --out reports $(ARGS)

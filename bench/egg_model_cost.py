@@ -11,73 +11,64 @@ the model's time per step, the step's time per step and their ratio.
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import time
 
-import numpy as np
-
-from projection_server.simulation import load_settings
-from projection_server.simulation.job import Job
-from projection_server.simulation.programs import get as get_program
-from projection_server.simulation.scenario import parse_scenario
-from projection_server.simulation.world import build_world
-from step_convergence import kb_scenario   # bench/, this script's directory
+import harness
 
 
-def grasp(scenario: dict, force: float, position: float, cache: bool) -> tuple[float, float]:
+def grasp(client, scenario: dict, force: float, position: float,
+          cache: bool) -> tuple[float, float]:
     """Seconds of stepping and of the egg model per physics step of one grasp."""
-    import pybullet
-    from pybullet_utils.bullet_client import BulletClient
+    from projection_server.simulation import Job, load_settings
 
     settings = load_settings()
     job = Job.checked(scenario, 'grasp_object', {'force': force, 'position': position})
-    parsed = parse_scenario(job.scenario)
-    client = BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        physics = build_world(client, parsed, settings)
-        task = get_program('grasp_object').create(physics, parsed, dict(job.params),
-                                                  np.random.default_rng(0))
-        (egg,) = physics.models
-        egg._cache_on = cache
-        physics.models = []   # stepped and measured separately below
-        steps = int(task.duration * settings.physics.rate_hz)
-        stepping = model = 0.0
-        for step in range(steps):
-            if step % settings.control.steps_per_control == 0:
-                task.control(physics)
-            t0 = time.perf_counter()
-            client.stepSimulation()
-            t1 = time.perf_counter()
-            physics.step_count += 1
-            egg.after_step(physics)
-            t2 = time.perf_counter()
-            stepping += t1 - t0
-            model += t2 - t1
-        return stepping / steps, model / steps
-    finally:
-        client.disconnect()
+    projection = harness.bare_projection(client, job, settings)
+    physics, task = projection.physics, projection.task
+    (egg,) = physics.models
+    # EggShell takes ``cache`` only when the world builder makes it: no public switch after.
+    egg._cache_on = cache
+    physics.models = []   # stepped and measured separately below
+    steps = int(task.duration * settings.physics.rate_hz)
+    stepping = model = 0.0
+    for step in range(steps):
+        if step % settings.control.steps_per_control == 0:
+            task.control(physics)
+        t0 = time.perf_counter()
+        physics.step()   # the engine's step, without the model
+        t1 = time.perf_counter()
+        egg.after_step(physics)
+        t2 = time.perf_counter()
+        stepping += t1 - t0
+        model += t2 - t1
+    return stepping / steps, model / steps
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    from projection_server.simulation import load_settings
+    from projection_server.simulation.runner import Simulator
+
+    parser = harness.arguments(__doc__)
     parser.add_argument('--forces', default='1,3,5,7,9,11')
     parser.add_argument('--positions', default='-0.02,0,0.02')
     args = parser.parse_args()
     cells = [(float(f), float(p)) for p in args.positions.split(',')
              for f in args.forces.split(',')]
-    scenario = kb_scenario('grasping')
+    scenario = harness.kb_scenario('grasping')
     settings = load_settings()
+    simulator = Simulator()
     print(f'{len(cells)} grasps, {settings.physics.rate_hz} Hz, '
           f'{settings.physics.solver_iterations} solver iterations')
     for cache in (True, False):
-        rows = [grasp(scenario, f, p, cache) for f, p in cells]
+        rows = [grasp(simulator.client, scenario, f, p, cache) for f, p in cells]
         step = statistics.median(r[0] for r in rows) * 1e6
         model = statistics.median(r[1] for r in rows) * 1e6
         ratios = statistics.median(r[1] / r[0] for r in rows)
         label = 'cached pad solutions' if cache else 'every step solved'
         print(f'{label:>22}: model {model:7.1f} us/step, step {step:7.1f} us/step, '
               f'model/step {ratios:.2f} (median of {len(rows)})')
+    simulator.close()
 
 
 if __name__ == '__main__':

@@ -16,7 +16,6 @@ that the engines are free. Prints what survived.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 from pathlib import Path
@@ -26,6 +25,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+import harness
 
 CRASH_REQUESTS = [
     ('timeout 1e10', dict(query='X = 1', timeout=1e10)),
@@ -99,20 +100,6 @@ class Client:
         return None
 
 
-def grandchildren(pid: int) -> list[int]:
-    """Processes whose parent is a child of ``pid`` (forkserver workers)."""
-    parents = {}
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / 'stat').read_text().rsplit(')', 1)[1].split()
-                parents[int(entry.name)] = int(fields[1])
-            except (OSError, IndexError, ValueError):
-                continue
-    children = {p for p, pp in parents.items() if pp == pid}
-    return sorted(p for p, pp in parents.items() if pp in children)
-
-
 def bag_health(bag_dir: Path) -> tuple[int, int]:
     """(complete bags, partial or temporary entries) in the bag directory."""
     complete = partial = 0
@@ -131,17 +118,14 @@ def projection_query(forces: list[float]) -> str:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__, seed=1)
     parser.add_argument('--kills', type=int, default=4, help='workers killed mid-projection')
     parser.add_argument('--disk-mb', type=int, default=8, help='size of the bag tmpfs')
-    parser.add_argument('--seed', type=int, default=1)
     args = parser.parse_args()
     rng = random.Random(args.seed)
 
-    os.environ.setdefault('ROS_DOMAIN_ID', str(10 + os.getpid() % 90))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    harness.ros_domain(10, 90)
     import rclpy
-    from projection_server.client.launcher import node_command, NodeProcess
 
     work = Path(tempfile.mkdtemp(prefix='faults-'))
     bag_dir = work / 'bags'
@@ -157,8 +141,7 @@ def main() -> int:
     survived: list[tuple[str, str, bool]] = []
     rclpy.init()
     try:
-        with NodeProcess(node_command('faults_server', params), work / 'node.log') as proc:
-            proc.wait_for_service('/faults_server/query')
+        with harness.start_node(params, work / 'node.log', node='/faults_server') as proc:
             client = Client('/faults_server')
             pid = client.stats()['pid']
 
@@ -198,7 +181,7 @@ def main() -> int:
                 victims: list[int] = []
                 while time.monotonic() < deadline:
                     rclpy.spin_once(client.node, timeout_sec=0.05)
-                    victims = grandchildren(pid)
+                    victims = harness.worker_pids(pid)
                 killed = rng.choice(victims) if victims and not future.done() else None
                 if killed is not None:
                     os.kill(killed, signal.SIGKILL)

@@ -13,20 +13,19 @@ the wall times (the reference's is what fidelity costs):
 
 from __future__ import annotations
 
-import argparse
-import os
 from pathlib import Path
-import platform
 import sys
 import tempfile
 import time
+
+import harness
 
 GOALS = {'table1': 'Table I >= 16/18 outcomes equal', 'table2': 'counts within 15 %',
          'table3': 'Table III 6/6 outcomes equal'}
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--only', action='append', metavar='TABLE',
                         help='table1, table2 or table3 (repeatable; default: all three)')
     parser.add_argument('--quick', action='store_true', help='the reduced grids')
@@ -34,13 +33,10 @@ def main() -> int:
     parser.add_argument('--timeout', type=float, default=1800.0,
                         help='seconds one projection may take (the reference is slow)')
     args = parser.parse_args()
-    os.environ.setdefault('ROS_DOMAIN_ID', str(140 + os.getpid() % 40))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    harness.ros_domain(140, 40)
 
     import rclpy
 
-    from projection_server.client import PrologClient
-    from projection_server.client.launcher import node_command, NodeProcess
     from projection_server.reproduce.experiments import (compare, run_experiment,
                                                          TABLE_I_GRASPING, TABLE_II_POURING,
                                                          TABLE_III_TURNING)
@@ -51,15 +47,13 @@ def main() -> int:
     lines = []
     rclpy.init()
     try:
-        with tempfile.TemporaryDirectory() as tmp, PrologClient() as client:
+        with tempfile.TemporaryDirectory() as tmp:
             bag_dir = Path(tmp) / 'bags'
             bag_dir.mkdir()
-            command = node_command('/projection_server', {
-                'bag_dir': bag_dir, 'projection_workers': args.workers,
-                'default_timeout': args.timeout})
-            with NodeProcess(command, Path(tmp) / 'node.log', stop_timeout=20.0) as node:
-                node.wait_for_service('/projection_server/query')
-                client.once('true')
+            params = {'bag_dir': bag_dir, 'projection_workers': args.workers,
+                      'default_timeout': args.timeout}
+            with harness.start_node(params, Path(tmp) / 'node.log', stop_timeout=20.0), \
+                    harness.client() as client:
                 for exp in experiments:
                     physics = reference_physics(client, exp.program)
                     start = time.monotonic()
@@ -86,8 +80,7 @@ def main() -> int:
     print('fidelity benchmark: the experiments at the programs\' settings vs a 4x finer '
           'reference (4x rate, 4x solver iterations)')
     print(f'  settings: {args.workers} workers, fresh bag_dir, '
-          f'{"quick" if args.quick else "full"} grids, python {platform.python_version()}, '
-          f'{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the end')
+          f'{"quick" if args.quick else "full"} grids, {harness.machine()} at the end')
     for line in lines:
         print('  ' + line)
     return 0

@@ -20,7 +20,6 @@ workers' PyBullet worlds), not the cost of a projection's physics.
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
 import platform
@@ -29,7 +28,7 @@ import sys
 import tempfile
 import time
 
-from projection_throughput import client, node, rss_mb, wait_warm, worker_rss
+import harness
 
 MANY = ('make_projection(grasping, grasp_object, '
         '[(F, force, range(1.0, 10.99, 0.01)), (P, position, [0.0])], '
@@ -39,14 +38,13 @@ PARAMETRIZATIONS = 1000
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--solutions', type=int, default=PARAMETRIZATIONS,
                         help='solutions to take (at most 1,000)')
     parser.add_argument('--every', type=int, default=50, help='solutions between samples')
     args = parser.parse_args()
-    os.environ.setdefault('ROS_DOMAIN_ID', str(130 + os.getpid() % 30))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    harness.ros_domain(130)
 
     import rclpy
 
@@ -57,37 +55,39 @@ def main() -> int:
     try:
         with tempfile.TemporaryDirectory() as tmp:
             bag_dir = Path(tmp) / 'bags'
-            with node(args.workers, str(bag_dir), Path(tmp) / 'node.log') as proc:
-                proc.wait_for_service('/projection_server/query')
+            params = {'projection_workers': args.workers, 'bag_dir': str(bag_dir),
+                      'default_timeout': 600.0, 'max_solutions': 2000}
+            with harness.start_node(params, Path(tmp) / 'node.log') as proc, \
+                    harness.client() as c:
                 pid = proc.proc.pid
-                with client() as c:
-                    c.once('true')
-                    wait_warm(pid, args.workers)
-                    rows.append((0, rss_mb(pid), max(worker_rss(pid), default=0.0), 0.0, 0.0))
-                    start = last = time.perf_counter()
-                    with c.query(MANY, timeout=600.0) as stream:
-                        for n, solution in enumerate(stream, start=1):
-                            outcome = str(solution['O'])
-                            outcomes[outcome] = outcomes.get(outcome, 0) + 1
-                            if n % args.every == 0 or n == args.solutions:
-                                now = time.perf_counter()
-                                per = (now - last) / (n - rows[-1][0])
-                                last = now
-                                bags = sum(1 for _ in bag_dir.iterdir())
-                                rows.append((n, rss_mb(pid),
-                                             max(worker_rss(pid), default=0.0), per, bags))
-                                loads.append(os.getloadavg()[0])
-                                print(f'  {n:4d} solutions: node {rows[-1][1]:5.1f} MB, '
-                                      f'largest worker {rows[-1][2]:5.1f} MB, '
-                                      f'{per * 1e3:4.0f} ms per solution, {bags} bags',
-                                      flush=True)
-                            if n >= args.solutions:
-                                break
-                    elapsed = time.perf_counter() - start
+                rows.append((0, *memory(pid), 0.0, 0.0))
+                start = last = time.perf_counter()
+                with c.query(MANY, timeout=600.0) as stream:
+                    for n, solution in enumerate(stream, start=1):
+                        outcome = str(solution['O'])
+                        outcomes[outcome] = outcomes.get(outcome, 0) + 1
+                        if n % args.every == 0 or n == args.solutions:
+                            now = time.perf_counter()
+                            per = (now - last) / (n - rows[-1][0])
+                            last = now
+                            bags = sum(1 for _ in bag_dir.iterdir())
+                            rows.append((n, *memory(pid), per, bags))
+                            loads.append(os.getloadavg()[0])
+                            print(f'  {n:4d} solutions: node {rows[-1][1]:5.1f} MB, '
+                                  f'largest worker {rows[-1][2]:5.1f} MB, '
+                                  f'{per * 1e3:4.0f} ms per solution, {bags} bags', flush=True)
+                        if n >= args.solutions:
+                            break
+                elapsed = time.perf_counter() - start
     finally:
         rclpy.try_shutdown()
     report(args, rows, outcomes, elapsed, loads)
     return 0
+
+
+def memory(pid: int) -> tuple[float, float]:
+    """RSS of the node ``pid`` and of its largest worker [MB]."""
+    return harness.rss_mb(pid), max(map(harness.rss_mb, harness.worker_pids(pid)), default=0.0)
 
 
 def slope(points: list[tuple[float, float]]) -> float:

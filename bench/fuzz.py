@@ -10,15 +10,16 @@ answer a plain query after each.
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
 import subprocess
 import sys
 
+import harness
+
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--examples', type=int, default=2000)
     args = parser.parse_args()
     root = Path(__file__).resolve().parent.parent

@@ -13,19 +13,15 @@ before it, and the grid's own time::
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
-import platform
 import statistics
 import sys
 import tempfile
 import threading
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from projection_throughput import client, node, wait_warm  # noqa: E402
+import harness
 
 GRID = ('make_projection(pouring, pour, [(P, position, [-0.09, 0.0, 0.07]), '
         '(T, time, [0.0, 0.5, 1.0]), (A, angle, [1.84, 1.99, 2.14])], TL)')
@@ -37,24 +33,27 @@ def grasp(force: float) -> str:
 
 
 def main() -> int:
-    import rclpy
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--grasps', type=int, default=5, help='grasps during the grid')
     parser.add_argument('--every', type=float, default=12.0, help='s between them')
     parser.add_argument('--backend', choices=('local', 'ray'), default='local')
     args = parser.parse_args()
+    harness.ros_domain(130)
+
+    import rclpy
+
     rclpy.init()
     with tempfile.TemporaryDirectory() as tmp:
-        with node(2, os.path.join(tmp, 'bags'), Path(tmp) / 'node.log',
-                  projection_backend=args.backend) as server:
-            short, long_ = client(), client()
+        params = {'projection_workers': 2, 'bag_dir': os.path.join(tmp, 'bags'),
+                  'default_timeout': 600.0, 'max_solutions': 2000,
+                  'projection_backend': args.backend}
+        # Ray and its actors start with the first projection: warmed below instead.
+        with harness.start_node(params, Path(tmp) / 'node.log', warm=args.backend == 'local'):
+            short, long_ = harness.client(), harness.client()
             forces = iter(2.0 + i / 100 for i in range(2 * args.grasps + 3))
-            if args.backend == 'ray':   # Ray and its actors start with the first projection
+            if args.backend == 'ray':
                 assert short.once(grasp(next(forces)), timeout=600.0) is not None
                 time.sleep(10.0)
-            else:
-                wait_warm(server.proc.pid, 2)
             idle = []
             for _ in range(args.grasps):
                 started = time.perf_counter()
@@ -85,12 +84,11 @@ def main() -> int:
           "client's Table II grid (27 pours, ALL_SOLUTIONS) runs, against the idle node")
     print(f'  settings: {args.backend} backend, 2 workers, fresh bag_dir, {args.grasps} '
           f'grasps idle and {args.grasps} during the grid, one every {args.every:g} s from '
-          f'its start; python {platform.python_version()}, {os.cpu_count()} cores, load '
-          f'average {os.getloadavg()[0]:.1f} at the end')
+          f'its start; {harness.machine()} at the end')
     print(f'  grasp on the idle node: median {statistics.median(idle):.2f} s '
-          f'({", ".join(f"{s:.2f}" for s in idle)})')
+          f'({harness.listed(idle)})')
     print(f'  grasp during the grid:  median {statistics.median(busy):.2f} s, max '
-          f'{max(busy):.2f} s ({", ".join(f"{s:.2f}" for s in busy)})')
+          f'{max(busy):.2f} s ({harness.listed(busy)})')
     print(f'  the grid: {grid["solutions"]} solutions in {grid["seconds"]:.1f} s')
     return 0
 

@@ -6,8 +6,9 @@ Runs the same projections twice in one process, alternating:
   program with the object models, monitor, write the MCAP bag, make the timeline from the
   samples in memory, and store it in Prolog (``timeline_create/2``, as ``translate/2``
   does), with a warm simulator (:class:`projection_server.simulation.runner.Simulator`);
-* **floor**: the same world and program, stepped bare (and once more with the object
-  models, to tell their cost from the logging's): ``stepSimulation`` and, for each
+* **floor**: the same world and program as the projection builds them, its monitor
+  detached, stepped bare (and once more with the object models, to tell their cost from
+  the logging's; :func:`harness.floor`): ``stepSimulation`` and, for each
   body with an object model (the egg), one contact query per step, and the program's own
   per-step commands and end (the pour's cup follows its path every step and the pour ends
   once the batter is at rest); nothing else (no object model computations, no
@@ -16,8 +17,9 @@ Runs the same projections twice in one process, alternating:
 The floor is also stepped with just the engine queries that the log and the object models
 need, and nothing done with their answers beyond telling which pad touches the egg: each
 step the contact points of every moving body and, where the egg is touched, its pose and
-the states of the touching gripper's pad links; each monitoring sample the poses of the moving bodies and particles, their links'
-states, the grippers' joints and the contact points of every body. That is what no
+the states of the touching gripper's pad links; each monitoring sample the poses of the
+moving bodies and particles, their links' states, the grippers' joints and the contact
+points of every body. That is what no
 implementation of the monitor and the egg's shell in this process can avoid; what is left
 of the goal's ratio beyond it is the budget of all the pipeline's Python on those answers.
 
@@ -33,34 +35,23 @@ Scenarios come from the knowledge base (``grasping``, ``pouring``).
 
 from __future__ import annotations
 
-import argparse
-import math
 import os
 from pathlib import Path
-import platform
 import statistics
 import sys
 import tempfile
 import time
 
-import numpy as np
+import harness
 
 GRASPS = [{'force': f, 'position': p} for p in (-0.02, 0.0, 0.02) for f in (1, 5, 11)]
 POURS = [{'angle': 1.99, 'time': 0.5, 'position': 0.0}]
 GOALS = {'grasp_object': 1.3, 'pour': 1.1}   # pipeline / floor
 
 
-def scenario(name: str) -> dict:
-    """The knowledge base's scenario description, as simulate/5 passes it to Python."""
-    import janus_swi as janus
-
-    return janus.query_once('scenario:scenario_description(S, D)', {'S': name})['D']
-
-
 def to_prolog(timeline: dict) -> float:
     """Seconds to store ``timeline`` in Prolog (then it is removed again)."""
-    import janus_swi as janus
-
+    janus = harness.prolog()
     start = time.perf_counter()
     janus.query_once('timeline:timeline_create(D, TL)', {'D': timeline})
     elapsed = time.perf_counter() - start
@@ -69,170 +60,49 @@ def to_prolog(timeline: dict) -> float:
 
 
 def pipeline(simulator, job, settings, bag: Path) -> dict[str, float]:
-    from projection_server.timeline import translate
-
-    made = {}
-    original = translate.translate_records
-
-    def timed(*args):   # the translation's share of Simulator.run
-        start = time.perf_counter()
-        made['timeline'] = original(*args)
-        made['translate'] = time.perf_counter() - start
-        return made['timeline']
-
-    translate.translate_records = timed
-    try:
-        start, cpu = time.perf_counter(), time.process_time()
-        simulator.run(job, settings, bag)
-        run = time.perf_counter() - start
-        prolog = to_prolog(made['timeline'])
-        cpu = time.process_time() - cpu
-    finally:
-        translate.translate_records = original
-    return {'total': run + prolog, 'simulate+log': run - made['translate'],
-            'translate': made['translate'], 'prolog': prolog, 'cpu': cpu}
-
-
-def floor(client, job, settings, models: bool = False,
-          queries: bool = False) -> tuple[float, float, int]:
-    """Bare stepping of the job's world and program (its per-step commands and its end
-    included): (wall, CPU seconds of this process, physics steps); with ``models``, each
-    step also runs the object models (the egg's shell), still without monitoring or bag;
-    with ``queries``, the engine queries of the log and the object models are made (see
-    the module's doc)."""
-    from projection_server.simulation.programs import get as get_program
-    from projection_server.simulation.scenario import parse_scenario
-    from projection_server.simulation.world import build_world
+    """One projection as a worker makes it (simulate and log, then the timeline from the
+    records), then stored in Prolog: the seconds of each part and the CPU time of all."""
+    from projection_server.workers.run import timeline_of
 
     start, cpu = time.perf_counter(), time.process_time()
-    settings = job.settings(settings)   # the program's and the job's own, as a worker has them
-    parsed = parse_scenario(job.scenario)
-    physics = build_world(client, parsed, settings)
-    task = get_program(job.program).create(physics, parsed, dict(job.params),
-                                           np.random.default_rng(0))
-    steps = math.ceil(task.duration * settings.physics.rate_hz - 1e-9)
-    control, log = settings.control.steps_per_control, settings.control.steps_per_log
-    modelled = [physics.body(model.name).body_id for model in physics.models]
-    step_simulation, contact_points = client.stepSimulation, client.getContactPoints
-    # The program's own per-step commands (the pour's cup on its path) and its end at rest
-    # are the program: the floor runs them too. No monitor exists here, so these are all.
-    hooks = list(physics.step_hooks)
-    finished = getattr(task, 'finished', None)
-    solid = [b for b in physics.bodies.values() if b.group is None]
-    moving = [b.body_id for b in solid if not b.static]
-    others = [body for body in moving if body not in modelled]
-    named = [b.body_id for b in solid]
-    linked = [(b.body_id, sorted(b.links)) for b in solid if not b.static and b.links]
-    grippers = list(physics.grippers.values())
-    # The egg's shell asks, in a step with contacts, for its own pose and, when a pad
-    # touches it, for the states of that gripper's pad links (which pad touches is read
-    # from the points: the least the shell must do with them).
-    pad_links = {(g.body_id, pad.link): (g.body_id, tuple(p.link for p in g.pads))
-                 for g in grippers for pad in g.pads}
-    particles = [i for fluid in physics.fluids.values() for i in fluid.body_ids]
-    base_pose, link_states = client.getBasePositionAndOrientation, client.getLinkStates
-    for step in range(steps):
-        if step % control == 0:
-            task.control(physics)
-        if models:
-            physics.step()
-        else:
-            step_simulation()
-            physics.step_count += 1
-            if queries:
-                touched = [contact_points(bodyA=body) for body in modelled]
-            else:
-                for body in modelled:
-                    contact_points(bodyA=body)
-            for hook in hooks:
-                hook()
-            if queries:
-                for body, points in zip(modelled, touched):
-                    if points:
-                        base_pose(body)
-                        for pad in {pad_links.get((p[2], p[4])) for p in points} - {None}:
-                            link_states(pad[0], pad[1], computeForwardKinematics=True)
-                for body in others:
-                    contact_points(bodyA=body)
-                if physics.step_count % log == 0:
-                    for body in moving + particles:
-                        base_pose(body)
-                    for body, links in linked:
-                        link_states(body, links, computeForwardKinematics=True)
-                    for gripper in grippers:
-                        gripper.state()
-                    for body in named:
-                        contact_points(bodyA=body)
-        if finished is not None and physics.step_count % log == 0 and finished(physics):
-            break
-    return time.perf_counter() - start, time.process_time() - cpu, physics.step_count
-
-
-_bare_client = None
-
-
-def _bare_start() -> None:
-    global _bare_client
-    import pybullet
-
-    from projection_server.simulation.physics import bound_client
-
-    _bare_client = bound_client(pybullet.DIRECT)
-
-
-def _bare_run(job, settings) -> float:
-    return floor(_bare_client, job, settings)[0]
-
-
-def parallel_floor(jobs, settings, workers: int) -> float:
-    """Wall time [s] of bare stepping ``jobs`` in ``workers`` processes at once (started and
-    warmed up before the clock starts): the floor of that many workers on this machine now.
-    """
-    from concurrent.futures import ProcessPoolExecutor
-    import multiprocessing
-
-    with ProcessPoolExecutor(workers, multiprocessing.get_context('forkserver'),
-                             initializer=_bare_start) as pool:
-        list(pool.map(_bare_run, jobs[:workers], [settings] * workers))   # warm-up
-        start = time.perf_counter()
-        list(pool.map(_bare_run, jobs, [settings] * len(jobs)))
-        return time.perf_counter() - start
+    projection = simulator.run(job, settings, bag)
+    ran = time.perf_counter()
+    timeline = timeline_of(projection, bag)
+    translated = time.perf_counter()
+    prolog = to_prolog(timeline)
+    cpu = time.process_time() - cpu
+    return {'total': translated - start + prolog, 'simulate+log': ran - start,
+            'translate': translated - ran, 'prolog': prolog, 'cpu': cpu}
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--repeat', type=int, default=3, help='rounds over all projections')
+    parser = harness.arguments(__doc__, repeat=3)
     parser.add_argument('--pours', type=int, default=len(POURS), help='pours per round (0-1)')
     parser.add_argument('--steps-per-log', type=int, default=None,
                         help="physics steps per monitoring sample (default: config's)")
     args = parser.parse_args()
 
-    import pybullet
-
-    from projection_server.service import prolog_bridge
-    from projection_server.simulation.job import Job
-    from projection_server.simulation.physics import bound_client
-    from projection_server.simulation.runner import Simulator
     from projection_server.settings import load_settings, Settings
+    from projection_server.simulation.job import Job
+    from projection_server.simulation.runner import Simulator
 
-    prolog_bridge.load()
     settings = load_settings()
     if args.steps_per_log is not None:   # a thinner (or denser) log, for what it would save
         data = settings.to_dict()
         data['control']['steps_per_log'] = args.steps_per_log
         settings = Settings.from_dict(data)
-    jobs = {'grasp_object': [Job.checked(scenario('grasping'), 'grasp_object', p)
+    jobs = {'grasp_object': [Job.checked(harness.kb_scenario('grasping'), 'grasp_object', p)
                              for p in GRASPS],
-            'pour': [Job.checked(scenario('pouring'), 'pour', p)
+            'pour': [Job.checked(harness.kb_scenario('pouring'), 'pour', p)
                      for p in POURS[:args.pours]]}
     simulator = Simulator()
-    bare = bound_client(pybullet.DIRECT)
+    bare = Simulator()   # a client of its own for the floor
     results: dict[str, dict[str, list[float]]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for program, group in jobs.items():
             for job in group:   # warm-up: imports, assets, serializers
                 pipeline(simulator, job, settings, Path(tmp) / f'warm-{len(os.listdir(tmp))}')
-                floor(bare, job, settings)
+                harness.floor(bare.client, job, settings)
                 break
         for r in range(args.repeat):
             for program, group in jobs.items():
@@ -244,22 +114,21 @@ def main() -> int:
                     for name, models, queries in (('floor', False, False),
                                                   ('models', True, False),
                                                   ('queries', False, True)):
-                        wall, cpu, steps = floor(bare, job, settings, models, queries)
+                        wall, cpu, steps = harness.floor(bare.client, job, settings,
+                                                         models, queries)
                         if name == 'floor':
                             row.setdefault('steps', []).append(steps)
                         row.setdefault(name, []).append(wall)
                         row.setdefault(f'{name} cpu', []).append(cpu)
     simulator.close()
-    bare.disconnect()
+    bare.close()
 
     print('pipeline overhead benchmark: full projection pipeline vs bare Bullet stepping')
     print(f'  settings: {len(jobs["grasp_object"])} grasps ({", ".join(map(str, GRASPS[:2]))}'
           f', ...) and {len(jobs["pour"])} pour(s) {POURS[:args.pours]}, each run '
           f'{args.repeat}x both ways, alternating, in one process; a sample every '
           f'{settings.control.steps_per_log} steps; physics from '
-          f'config/physics.yaml; '
-          f'python {platform.python_version()}, {os.cpu_count()} cores, '
-          f'load average {os.getloadavg()[0]:.1f}')
+          f'config/physics.yaml; {harness.machine()}')
     for program, row in results.items():
         med = {name: statistics.median(values) for name, values in row.items()}
         ratio = statistics.median(t / f for t, f in zip(row['total'], row['floor']))

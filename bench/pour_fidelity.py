@@ -2,7 +2,7 @@
 it had before (the global ones, without config/physics.yaml's programs section) and against
 a finer reference, at points of Table II.
 
-Runs the knowledge base's pouring scenario (read from SWI-Prolog) with ``pour`` at each
+Runs the knowledge base's pouring scenario (from the server's Prolog) with ``pour`` at each
 point three ways, in two processes, alternating: at the program's settings, at the global
 settings (``rate_hz`` and ``solver_iterations`` of the ``physics`` section) and at the
 reference (``--factor`` times the program's rate and iterations, as bench/fidelity.py).
@@ -29,21 +29,16 @@ not settings, e.g. ``{"enableConeFriction": 0}``), both for the program's run on
 
 from __future__ import annotations
 
-import argparse
 from concurrent.futures import ProcessPoolExecutor
 import itertools
 import json
-import os
 from pathlib import Path
-import platform
 import statistics
 import sys
 import tempfile
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from step_convergence import kb_scenario  # noqa: E402
+import harness
 
 # (angle, hold, position): the no-hold pours are the hard case of convergence.
 POINTS = ((2.14, 0.0, 0.0), (1.84, 0.0, 0.0), (1.99, 0.5, 0.0), (2.14, 1.0, -0.09))
@@ -51,26 +46,13 @@ POINTS = ((2.14, 0.0, 0.0), (1.84, 0.0, 0.0), (1.99, 0.5, 0.0), (2.14, 1.0, -0.0
 MISSES = ((1.84, 0.0, -0.09), (1.84, 0.0, 0.07), (1.99, 0.0, 0.07), (1.84, 0.5, 0.07))
 
 
-def _engine(options: dict) -> None:
-    """Worker initializer: every world built in this process also gets ``options``."""
-    if not options:
-        return
-    from projection_server.simulation import world
-
-    configure = world._configure
-
-    def configured(client, settings) -> None:
-        configure(client, settings)
-        client.setPhysicsEngineParameter(**options)
-    world._configure = configured
-
-
 def pour(job: tuple) -> tuple[tuple, str, dict, float]:
-    """One pour at ``physics`` (None: the program's settings); its measures and CPU s."""
+    """One pour at ``physics`` (None: the program's settings) with ``engine``'s
+    ``setPhysicsEngineParameter`` options once its world is built; its measures and CPU s."""
     from projection_server.simulation import Job, load_settings
     from projection_server.simulation.runner import Simulator
 
-    scenario, point, name, physics = job
+    scenario, point, name, physics, engine = job
     angle, hold, position = point
     job_ = Job.checked(scenario, 'pour', {'angle': angle, 'time': hold, 'position': position},
                        physics)
@@ -78,7 +60,7 @@ def pour(job: tuple) -> tuple[tuple, str, dict, float]:
     try:
         with tempfile.TemporaryDirectory(prefix='pour-fidelity-') as tmp:
             start = time.process_time()
-            timeline = simulator.run(job_, load_settings(), Path(tmp) / 'bag')
+            timeline = _project(simulator, job_, load_settings(), Path(tmp) / 'bag', engine)
             cpu = time.process_time() - start
     finally:
         simulator.close()
@@ -91,8 +73,24 @@ def pour(job: tuple) -> tuple[tuple, str, dict, float]:
     return point, name, measures, cpu
 
 
+def _project(simulator, job, settings, bag: Path, engine: dict) -> dict:
+    """``workers.run.project``: the projection's timeline; with ``engine``'s options set on
+    its world before the first step."""
+    from projection_server.bags import BagWriter
+    from projection_server.simulation.runner import Projection
+    from projection_server.workers.run import project, timeline_of
+
+    if not engine:
+        return project(simulator, job, settings, bag)
+    with BagWriter(bag) as writer:
+        projection = Projection(simulator.client, job, settings, writer)
+        simulator.client.setPhysicsEngineParameter(**engine)
+        projection.advance()
+    return timeline_of(projection, bag)
+
+
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--points', default='four', choices=('four', 'all', 'misses'),
                         help='four points, all 27 of Table II, or the four small piles '
                              'whose counts differ most from the reference')
@@ -112,10 +110,6 @@ def main() -> int:
                         help="the reference's measures from a file of --save")
     args = parser.parse_args()
     engine = json.loads(args.engine)
-    if engine and not args.no_global or engine and not (args.no_reference
-                                                          or args.reference_from):
-        parser.error('--engine applies to every run of a process: use it with --no-global '
-                     'and --reference-from (or --no-reference)')
 
     from projection_server.reproduce import paper
     from projection_server.reproduce.fidelity import REFERENCE_TOLERANCES
@@ -136,13 +130,12 @@ def main() -> int:
     points = {'four': POINTS, 'misses': MISSES}.get(args.points) or [
         (a, h, x) for x, h, a in itertools.product(
             paper.POUR_POSITIONS, paper.POUR_TIMES, paper.POUR_ANGLES)]
-    scenario = kb_scenario('pouring')
-    jobs = [(scenario, point, name, physics)
+    scenario = harness.kb_scenario('pouring')
+    jobs = [(scenario, point, name, physics, engine if name == 'program' else {})
             for point in points for name, physics in configs.items()]
     results: dict[tuple, dict[str, tuple[dict, float]]] = {}
     start = time.monotonic()
-    with ProcessPoolExecutor(args.workers, initializer=_engine,
-                             initargs=(engine,)) as executor:
+    with ProcessPoolExecutor(args.workers) as executor:
         for point, name, measures, cpu in executor.map(pour, jobs):
             results.setdefault(point, {})[name] = (measures, cpu)
             print(f'  angle {point[0]:.2f}, hold {point[1]:.1f} s, position {point[2]:+.2f}, '
@@ -165,9 +158,8 @@ def main() -> int:
     print()
     print("pour fidelity benchmark: the pour's settings vs the global settings and a "
           f'{args.factor}x finer reference, in-process')
-    print(f'  settings: {len(points)} points, {args.workers} processes, python '
-          f'{platform.python_version()}, {os.cpu_count()} cores, load average '
-          f'{os.getloadavg()[0]:.1f} at the end, {wall:.0f} s wall')
+    print(f'  settings: {len(points)} points, {args.workers} processes, {harness.machine()} '
+          f'at the end, {wall:.0f} s wall')
     for name, physics in configs.items():
         chosen = {'rate_hz': own.rate_hz, 'solver_iterations': own.solver_iterations,
                   **(physics or {})}

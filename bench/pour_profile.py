@@ -1,8 +1,9 @@
 """Where a pour's stepping goes: CPU per phase of the pour and contact points per step, with
 engine options that are not settings, and whether a saved state continues as the run did.
 
-Bare stepping of the knowledge base's pouring scenario (read from SWI-Prolog) with the
-pour's control and step hook, no monitor and no log, in this process:
+Bare stepping of the knowledge base's pouring scenario (from the server's Prolog), its
+world and task as a projection builds them, with the pour's control and step hook, no
+monitor and no log, in this process:
 
     tools/with_env.sh python bench/pour_profile.py                  # the pour's settings
     tools/with_env.sh python bench/pour_profile.py --physics '{"solver_iterations": 100}'
@@ -18,35 +19,30 @@ contact points per step between particles, of particles with the cup, and the re
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import os
-from pathlib import Path
-import platform
 import sys
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from step_convergence import kb_scenario  # noqa: E402
+import harness
 
 
-def build(client, scenario, settings, params, engine, sleep):
-    import numpy as np
-
-    from projection_server.simulation.programs import get as get_program
-    from projection_server.simulation.world import build_world
-
-    physics = build_world(client, scenario, settings)
+def build(client, job, settings, engine, sleep):
+    """The pour's world and task as a projection builds them, its monitor detached; then
+    ``engine``'s options and, with ``sleep``, particles that Bullet may deactivate."""
+    projection = harness.bare_projection(client, job, settings)
     if engine:
         client.setPhysicsEngineParameter(**engine)
-    task = get_program('pour').create(physics, scenario, params, np.random.default_rng(0))
     if sleep:
-        for body in task._particles:
+        for body in particles(projection.physics):
             client.changeDynamics(body, -1,
                                   activationState=client.ACTIVATION_STATE_ENABLE_SLEEPING)
-    return physics, task
+    return projection
+
+
+def particles(physics) -> list[int]:
+    """The bodies of every particle fluid."""
+    return [body for fluid in physics.fluids.values() for body in fluid.body_ids]
 
 
 def advance(physics, task, until: int) -> None:
@@ -58,7 +54,7 @@ def advance(physics, task, until: int) -> None:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--angle', type=float, default=2.14)
     parser.add_argument('--time', type=float, default=0.5)
     parser.add_argument('--position', type=float, default=0.0)
@@ -75,28 +71,28 @@ def main() -> int:
     args = parser.parse_args()
 
     import numpy as np
-    import pybullet
 
-    from projection_server.simulation.physics import bound_client
-    from projection_server.simulation.programs.pour import SETTLE
-    from projection_server.simulation.scenario import parse_scenario
     from projection_server.settings import load_settings
+    from projection_server.simulation import Job
+    from projection_server.simulation.programs.pour import SETTLE
+    from projection_server.simulation.runner import Simulator
 
-    scenario = parse_scenario(kb_scenario('pouring'))
+    params = {'angle': args.angle, 'time': args.time, 'position': args.position}
+    job = Job.checked(harness.kb_scenario('pouring'), 'pour', params)
     settings = load_settings().for_projection('pour', json.loads(args.physics))
     engine = json.loads(args.engine)
-    params = {'angle': args.angle, 'time': args.time, 'position': args.position}
-    client = bound_client(pybullet.DIRECT)
+    simulator = Simulator()
+    client = simulator.client
     s = settings.physics
     print(f'pour profile: angle {args.angle}, hold {args.time} s, position {args.position}; '
           f'{s.rate_hz} Hz, {s.solver_iterations} iterations, engine {engine or "-"}, '
-          f'sleeping {args.sleep}; python {platform.python_version()}, load average '
-          f'{os.getloadavg()[0]:.1f}')
+          f'sleeping {args.sleep}; {harness.machine()}')
     if args.restore:
         rate = s.rate_hz
         states = []
         for restore in (False, True):
-            physics, task = build(client, scenario, settings, params, engine, args.sleep)
+            projection = build(client, job, settings, engine, args.sleep)
+            physics, task = projection.physics, projection.task
             advance(physics, task, rate)
             saved = client.saveState()
             advance(physics, task, 3 * rate)
@@ -105,22 +101,24 @@ def main() -> int:
                 physics.step_count = rate
                 advance(physics, task, 3 * rate)
             states.append(np.array([client.getBasePositionAndOrientation(b)[0]
-                                    for b in task._particles]))
+                                    for b in particles(physics)]))
         same = np.array_equal(states[0], states[1])
         print(f'  restored at 1 s and stepped to 3 s: identical {same}, largest particle '
               f'distance {np.abs(states[0] - states[1]).max() * 1000:.1f} mm')
-        client.disconnect()
+        simulator.close()
         return 0
 
     start = time.process_time()
-    physics, task = build(client, scenario, settings, params, engine, args.sleep)
+    projection = build(client, job, settings, engine, args.sleep)
+    physics, task = projection.physics, projection.task
     built = time.process_time() - start
     ends = [('settle', SETTLE), ('tilt', task.tilted),
             ('hold', task.released), ('back', task.upright), ('after', math.inf)]
     cpu = {name: 0.0 for name, _ in ends}
     steps = {name: 0 for name, _ in ends}
     points = {name: [0, 0, 0] for name, _ in ends}
-    particles, cup = set(task._particles), task._cup
+    fluid = set(particles(physics))
+    cup = physics.body(next(projection.scenario.of_class('cup')).name).body_id
     control, log = settings.control.steps_per_control, settings.control.steps_per_log
     phase, finished = 0, None
     for step in range(math.ceil(task.duration * s.rate_hz - 1e-9)):
@@ -135,7 +133,7 @@ def main() -> int:
         steps[name] += 1
         if args.contacts and step % 8 == 0:
             for p in client.getContactPoints():
-                kind = (0 if p[1] in particles and p[2] in particles
+                kind = (0 if p[1] in fluid and p[2] in fluid
                         else 1 if cup in (p[1], p[2]) else 2)
                 points[name][kind] += 1
         if physics.step_count % log == 0 and task.finished(physics):
@@ -152,7 +150,7 @@ def main() -> int:
             line += ('  contact points per step: particle-particle {:.0f}, particle-cup '
                      '{:.0f}, other {:.0f}'.format(*(n / sampled for n in points[name])))
         print(line)
-    client.disconnect()
+    simulator.close()
     return 0
 
 

@@ -11,29 +11,24 @@ Starts a projection_server with one worker and an empty bag directory, then alte
 
 from __future__ import annotations
 
-import argparse
-import os
 from pathlib import Path
-import platform
 import statistics
 import sys
 import tempfile
 import time
 
+import harness
+
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--repeat', type=int, default=5)
+    parser = harness.arguments(__doc__, repeat=5)
     parser.add_argument('--angle', type=float, default=2.14)
     parser.add_argument('--time', type=float, default=0.5)
     args = parser.parse_args()
-    os.environ.setdefault('ROS_DOMAIN_ID', str(180 + os.getpid() % 40))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    harness.ros_domain(180, 40)
 
     import rclpy
 
-    from projection_server.client import PrologClient
-    from projection_server.client.launcher import node_command, NodeProcess
     from projection_server.settings import load_settings
 
     settings = load_settings()
@@ -44,12 +39,10 @@ def main() -> int:
     counts: dict[str, list[int]] = {'program': [], 'global': []}
     rclpy.init()
     try:
-        with tempfile.TemporaryDirectory() as tmp, PrologClient() as client:
-            command = node_command('/projection_server', {
-                'bag_dir': Path(tmp), 'projection_workers': 1, 'default_timeout': 600.0})
-            with NodeProcess(command, Path(tmp) / 'node.log', stop_timeout=20.0) as node:
-                node.wait_for_service('/projection_server/query')
-                client.once('true')
+        with tempfile.TemporaryDirectory() as tmp:
+            params = {'bag_dir': Path(tmp), 'projection_workers': 1, 'default_timeout': 600.0}
+            with harness.start_node(params, Path(tmp) / 'node.log', stop_timeout=20.0), \
+                    harness.client() as client:
                 for i in range(args.repeat):
                     position = 0.002 * i
                     for name, options in (('program', '[]'), ('global', _options(floor))):
@@ -66,12 +59,12 @@ def main() -> int:
     program, glob = statistics.median(times['program']), statistics.median(times['global'])
     print('pour speed benchmark: one pour through the service, program settings vs global')
     print(f'  settings: angle {args.angle}, hold {args.time} s, {args.repeat} pours each, '
-          f'alternating, 1 worker, python {platform.python_version()}, {os.cpu_count()} cores, '
-          f'load average {os.getloadavg()[0]:.1f} at the end')
+          f'alternating, 1 worker, {harness.machine()} at the end')
     print(f'  program settings (rate {own.rate_hz} Hz, {own.solver_iterations} iterations): '
-          f'median {program:.2f} s  runs {_list(times["program"])}  on pan {counts["program"]}')
+          f'median {program:.2f} s  runs {harness.listed(times["program"])}  '
+          f'on pan {counts["program"]}')
     print(f'  global settings (rate {floor["rate_hz"]} Hz, {floor["solver_iterations"]} '
-          f'iterations): median {glob:.2f} s  runs {_list(times["global"])}  '
+          f'iterations): median {glob:.2f} s  runs {harness.listed(times["global"])}  '
           f'on pan {counts["global"]}')
     print(f'  speed-up: {glob / program:.2f}x')
     return 0
@@ -79,10 +72,6 @@ def main() -> int:
 
 def _options(physics: dict[str, int]) -> str:
     return '[physics(_{' + ', '.join(f'{k}: {v}' for k, v in physics.items()) + '})]'
-
-
-def _list(values: list[float]) -> str:
-    return ', '.join(f'{v:.2f}' for v in values)
 
 
 if __name__ == '__main__':

@@ -23,32 +23,27 @@ before it had settings of its own): what the pour's settings and the trees save 
 
 from __future__ import annotations
 
-import argparse
 from concurrent.futures import ProcessPoolExecutor
 import itertools
 import multiprocessing
-import os
 from pathlib import Path
 import pickle
-import platform
 import resource
 import sys
 import tempfile
 import time
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from step_convergence import kb_scenario  # noqa: E402
+import harness
 
 PROGRAM, SCENARIO = 'pour', 'pouring'
 _state: dict = {}
 
 
-def _start() -> None:
+def _start(description: dict) -> None:
     from projection_server.simulation.runner import Simulator
     from projection_server.settings import load_settings
 
-    _state['description'] = kb_scenario(SCENARIO)
+    _state['description'] = description
     _state['settings'] = load_settings()
     _state['simulator'] = Simulator()
 
@@ -77,16 +72,19 @@ def _name(params: dict) -> str:
 
 
 def straight(params: dict, physics: dict | None = None) -> tuple[dict, tuple, float]:
+    from projection_server.workers.run import project
+
     start = _cpu()
     with tempfile.TemporaryDirectory() as tmp:
         bag = Path(tmp) / 'bag'
-        end = _logged_end(bag, _state['simulator'].run(_job(params, physics),
-                                                       _state['settings'], bag))
+        end = _logged_end(bag, project(_state['simulator'], _job(params, physics),
+                                       _state['settings'], bag))
     return params, end, _cpu() - start
 
 
 def tree(leaves: list[dict]) -> tuple[list[tuple[dict, tuple]], float]:
     from projection_server.simulation.branching import run_tree
+    from projection_server.workers.run import timeline_of
 
     start = _cpu()
     with tempfile.TemporaryDirectory() as tmp:
@@ -96,8 +94,10 @@ def tree(leaves: list[dict]) -> tuple[list[tuple[dict, tuple]], float]:
             (out / _name(params)).mkdir()
             bags.append(out / _name(params) / 'bag')
 
-        def report(index: int, timeline, ok: bool) -> None:   # in the leaf's process
-            end = _logged_end(bags[index], timeline) if ok else timeline
+        def report(index: int, result, ok: bool) -> None:   # in the leaf's process
+            # A finished projection's timeline is made here, from its records, as a
+            # worker's tree makes it.
+            end = _logged_end(bags[index], timeline_of(result, bags[index])) if ok else result
             (out / f'{_name(leaves[index])}.end').write_bytes(pickle.dumps(end))
 
         run_tree(_state['simulator'].client, [(_job(p), b) for p, b in zip(leaves, bags)],
@@ -109,7 +109,7 @@ def tree(leaves: list[dict]) -> tuple[list[tuple[dict, tuple]], float]:
 def main() -> int:
     from projection_server.reproduce import paper
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--positions', type=float, nargs='*')
     parser.add_argument('--global', dest='global_', action='store_true',
                         help='also run the pours straight at the global settings')
@@ -119,7 +119,8 @@ def main() -> int:
               for t, a in itertools.product(paper.POUR_TIMES, paper.POUR_ANGLES)]
              for x in positions]
     with ProcessPoolExecutor(2, multiprocessing.get_context('forkserver'),
-                             initializer=_start) as pool:
+                             initializer=_start,
+                             initargs=(harness.kb_scenario(SCENARIO),)) as pool:
         started = time.perf_counter()
         jobs = [p for leaves in trees for p in leaves]
         straights = list(pool.map(straight, jobs))
@@ -145,8 +146,7 @@ def main() -> int:
     print(f'  settings: {count} whole projections ({len(trees)} positions {list(positions)}, '
           f'{[{k: v for k, v in p.items() if k != "position"} for p in trees[0]]}), '
           "monitor, a bag each and timeline at the program's settings, 2 processes; "
-          f'python {platform.python_version()}, {os.cpu_count()} cores, load average '
-          f'{os.getloadavg()[0]:.1f} at the end')
+          f'{harness.machine()} at the end')
     print(f'  straight: {straight_cpu:.1f} CPU s ({straight_wall:.1f} s wall)')
     print(f'  tree:     {tree_cpu:.1f} CPU s ({tree_wall:.1f} s wall), '
           f'{straight_cpu / tree_cpu:.2f}x less CPU')

@@ -12,15 +12,14 @@
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
 from pathlib import Path
 import platform
 import statistics
 import sys
 import tempfile
 import time
+
+import harness
 
 TABLE_I = ('make_projection(grasping, grasp_object, '
            '[(F, force, [1, 3, 5, 7, 9, 11]), (P, position, [-0.02, 0.00, 0.02])], TL), '
@@ -34,26 +33,20 @@ def uncached(run: int) -> str:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--repeat', type=int, default=7)
+    parser = harness.arguments(__doc__, repeat=7)
     parser.add_argument('--cancels', type=int, default=5)
     args = parser.parse_args()
-    os.environ.setdefault('ROS_DOMAIN_ID', str(160 + os.getpid() % 30))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    harness.ros_domain(160)
 
     import rclpy
-    from projection_server.client import PrologClient, PrologQueryError
-    from projection_server.client.launcher import node_command, NodeProcess
-    from std_srvs.srv import Trigger
+    from projection_server.client import PrologQueryError
 
     rclpy.init()
     tmp = Path(tempfile.mkdtemp(prefix='bench_project_action_'))
     params = {'bag_dir': str(tmp / 'bags'), 'default_timeout': 600.0}
-    print(f'# bench/project_action.py  {platform.node()}  {os.cpu_count()} cores  '
-          f'load {os.getloadavg()[0]:.1f}')
-    with NodeProcess(node_command('/projection_server', params), tmp / 'node.log') as node:
-        node.wait_for_service('/projection_server/query')
-        with PrologClient('/projection_server', service_timeout=30.0) as client:
+    print(f'# bench/project_action.py  {platform.node()}  {harness.machine()}')
+    with harness.start_node(params, tmp / 'node.log'), harness.ServerStats() as stats:
+        with harness.client(service_timeout=30.0) as client:
             client.all(TABLE_I, timeout=600.0)   # fills the bag cache
             service, action = [], []
             for _ in range(args.repeat):
@@ -84,8 +77,7 @@ def main() -> int:
                 except PrologQueryError as exc:
                     assert exc.kind == 'cancelled', exc
                 latencies.append(time.perf_counter() - start)
-                while json.loads(client._call(client._ping, Trigger.Request()).message)[
-                        'engines'] and time.perf_counter() - start < 30.0:
+                while stats()['engines'] and time.perf_counter() - start < 30.0:
                     time.sleep(0.01)
                 engines_after.append(time.perf_counter() - start)
             print(f'Cancel after the first feedback, {args.cancels} runs (projections of '

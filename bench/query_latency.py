@@ -1,7 +1,7 @@
 """Round-trip latency of a trivial Prolog query against a plain std_srvs Trigger.
 
 Starts, in their own processes and a private ROS domain on loopback:
-  - the projection_server node, and
+  - the projection_server node (an empty bag directory; once its worker is warm), and
   - a minimal rclpy node serving std_srvs/srv/Trigger (the baseline);
 then calls each service N times from this process, alternating, and prints
 medians, 90th percentiles and their ratio.
@@ -11,14 +11,15 @@ medians, 90th percentiles and their ratio.
 
 from __future__ import annotations
 
-import argparse
+import contextlib
 import os
-import platform
-import signal
+from pathlib import Path
 import statistics
-import subprocess
 import sys
+import tempfile
 import time
+
+import harness
 
 TRIGGER_SERVER = '''
 import rclpy
@@ -56,55 +57,51 @@ def summary(name: str, samples: list[float]) -> tuple[float, str]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('-n', type=int, default=300, help='calls per service')
     parser.add_argument('--warmup', type=int, default=30)
     parser.add_argument('--query', default='X = 1')
     args = parser.parse_args()
 
-    os.environ.setdefault('ROS_DOMAIN_ID', str(100 + os.getpid() % 30))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    procs = [subprocess.Popen(['projection_server'], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL, start_new_session=True),
-             subprocess.Popen([sys.executable, '-c', TRIGGER_SERVER],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                              start_new_session=True)]
+    harness.ros_domain(100)
+
     import rclpy
     from projection_interfaces.srv import PrologQuery
+    from projection_server.client.launcher import NodeProcess
     from std_srvs.srv import Trigger
+
     rclpy.init()
-    node = rclpy.create_node('latency_bench')
     try:
-        query = node.create_client(PrologQuery, '/projection_server/query')
-        trigger = node.create_client(Trigger, '/plain_trigger/trigger')
-        for c in (query, trigger):
-            if not c.wait_for_service(timeout_sec=60):
-                raise RuntimeError(f'{c.srv_name} did not come up')
-        q_req = PrologQuery.Request(mode=PrologQuery.Request.ONCE, query=args.query)
-        t_req = Trigger.Request()
-        for _ in range(args.warmup):
-            call_timed(node, query, q_req)
-            call_timed(node, trigger, t_req)
-        q_times, t_times = [], []
-        for _ in range(args.n):  # alternate, so both see the same machine noise
-            q_times.append(call_timed(node, query, q_req))
-            t_times.append(call_timed(node, trigger, t_req))
+        with contextlib.ExitStack() as stack:
+            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory()))
+            stack.enter_context(harness.start_node({'bag_dir': tmp / 'bags'}, tmp / 'node.log'))
+            plain = stack.enter_context(NodeProcess([sys.executable, '-c', TRIGGER_SERVER],
+                                                    tmp / 'trigger.log'))
+            plain.wait_for_service('/plain_trigger/trigger', Trigger)
+            node = rclpy.create_node('latency_bench')
+            stack.callback(node.destroy_node)
+            query = node.create_client(PrologQuery, '/projection_server/query')
+            trigger = node.create_client(Trigger, '/plain_trigger/trigger')
+            for c in (query, trigger):
+                if not c.wait_for_service(timeout_sec=60):
+                    raise RuntimeError(f'{c.srv_name} did not come up')
+            q_req = PrologQuery.Request(mode=PrologQuery.Request.ONCE, query=args.query)
+            t_req = Trigger.Request()
+            for _ in range(args.warmup):
+                call_timed(node, query, q_req)
+                call_timed(node, trigger, t_req)
+            q_times, t_times = [], []
+            for _ in range(args.n):  # alternate, so both see the same machine noise
+                q_times.append(call_timed(node, query, q_req))
+                t_times.append(call_timed(node, trigger, t_req))
     finally:
-        node.destroy_node()
         rclpy.try_shutdown()
-        for p in procs:
-            p.send_signal(signal.SIGINT)
-        for p in procs:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
 
     print('query latency benchmark')
     rmw = os.environ.get('RMW_IMPLEMENTATION', 'default (Fast DDS)')
     print(f'  settings: n={args.n} per service (alternating), warmup={args.warmup}, '
           f'query={args.query!r} in ONCE mode, RMW={rmw}, '
-          f'discovery=LOCALHOST, python {platform.python_version()}, {os.cpu_count()} cores')
+          f'discovery=LOCALHOST, {harness.machine()}')
     tq, line_q = summary('PrologQuery ONCE round trip', q_times)
     tt, line_t = summary('std_srvs/Trigger round trip', t_times)
     print('  ' + line_t)

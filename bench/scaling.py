@@ -3,10 +3,10 @@ overhead of Ray against local worker processes, and the speed-up from a second w
 
 Two batches: the paper's Table I (18 egg grasps: 6 forces x 3 positions) and a batch of
 pours (Table II's 9 pours at the centre: 3 angles x 3 holding times, one family that both
-backends run as a tree). The scenarios are the knowledge base's,
-taken from bags a node made (``simulate/5`` of ``grasping`` and ``pouring``). Each backend
-gets a fresh bag directory (nothing cached) and warm workers (one warm-up projection per
-worker, not timed); a batch is submitted at once (``submit_all``, as a query's prefetch
+backends run as a tree). The scenarios are the knowledge base's (``grasping`` and
+``pouring``, from the server's Prolog in this process). Each backend gets a fresh bag
+directory (nothing cached) and warm workers (one warm-up projection per worker, not
+timed); a batch is submitted at once (``submit_all``, as a query's prefetch
 queues it) and timed until its last projection is published. Local and ray runs alternate,
 so a loaded machine slows both alike; the local backend is the floor Ray is measured
 against.
@@ -17,9 +17,7 @@ against.
 
 from __future__ import annotations
 
-import argparse
 import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -27,39 +25,11 @@ import time
 
 from projection_server.reproduce import paper
 
+import harness
+
 POUR_ANGLES = paper.POUR_ANGLES
 POUR_TIMES = paper.POUR_TIMES
 BATCHES = ('table1', 'pours')
-
-
-def kb_scenarios(node_dir: str) -> dict[str, dict]:
-    """The grasping and pouring scenarios of the knowledge base, from bags a node made."""
-    import json
-
-    import rclpy
-
-    from projection_server.bags import read_bag
-    from projection_server.client import PrologClient
-    from projection_server.client.launcher import node_command, NodeProcess
-
-    rclpy.init()
-    log = os.path.join(node_dir, 'node.log')
-    params = {'bag_dir': os.path.join(node_dir, 'bags'), 'default_timeout': 600.0}
-    scenarios = {}
-    try:
-        with NodeProcess(node_command('/scaling_kb', params), _path(log)) as proc:
-            proc.wait_for_service('/scaling_kb/query')
-            with PrologClient('/scaling_kb', service_timeout=60.0) as client:
-                for name, goal in (('grasping', 'simulate(grasping, grasp_object, '
-                                                '[(_, force, [5])], 300, L)'),
-                                   ('pouring', 'simulate(pouring, pour, [(_, angle, '
-                                               f'[{POUR_ANGLES[0]}])], 300, L)')):
-                    bag = client.once(goal, timeout=600.0)['L']
-                    _, _, info = next(read_bag(bag, ['/projection/info']))
-                    scenarios[name] = json.loads(info.scenario_json)
-    finally:
-        rclpy.try_shutdown()
-    return scenarios
 
 
 def batches(scenarios: dict[str, dict]) -> dict[str, list]:
@@ -106,21 +76,17 @@ def run_once(kind: str, workers: int, address: str, scenarios, jobs) -> dict[str
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__, repeat=3)
     parser.add_argument('--workers', type=int, nargs='+', default=[1, 2])
-    parser.add_argument('--repeat', type=int, default=3)
     parser.add_argument('--ray-address', default='',
                         help='join this Ray cluster (auto, host:port); default: start a '
                              'one-node cluster on this machine for the run')
     args = parser.parse_args()
-    os.environ.setdefault('ROS_DOMAIN_ID', str(160 + os.getpid() % 30))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
     from projection_server.simulation import ProjectionError
     from projection_server.workers.ray.local_cluster import LocalCluster
 
-    with tempfile.TemporaryDirectory() as node_dir:
-        scenarios = kb_scenarios(node_dir)
+    scenarios = {name: harness.kb_scenario(name) for name in ('grasping', 'pouring')}
     jobs = batches(scenarios)
     cluster = None
     address = args.ray_address
@@ -148,8 +114,7 @@ def main() -> int:
         if cluster is not None:
             cluster.stop()
 
-    print(f'\nmachine: {os.cpu_count()} cores, {platform.python_implementation()} '
-          f'{platform.python_version()}, load average {os.getloadavg()[0]:.1f}; '
+    print(f'\nmachine: {harness.machine()}; '
           f'ray at {args.ray_address or "a one-node cluster started for the run"}')
     print(f'settings: {args.repeat} runs, fresh bag directory and warm workers per run; '
           f'Table I = {len(jobs["table1"])} grasps, pours = {len(jobs["pours"])} pours '
@@ -174,11 +139,6 @@ def main() -> int:
                   f'| {1000 * (ray - local) * workers / n:+.0f} ms | {ray / local:.2f} '
                   f'| {up_local:.2f}x | {up_ray:.2f}x |')
     return 0
-
-
-def _path(text: str):
-    from pathlib import Path
-    return Path(text)
 
 
 if __name__ == '__main__':

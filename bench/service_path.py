@@ -15,9 +15,7 @@ query asked again ten times with every bag made (a cached re-query: Prolog and t
 
 from __future__ import annotations
 
-import argparse
 import os
-import platform
 import resource
 import statistics
 import sys
@@ -25,7 +23,7 @@ import tempfile
 import threading
 import time
 
-from projection_throughput import QUERY
+import harness
 
 
 def cpu_self() -> float:
@@ -34,7 +32,11 @@ def cpu_self() -> float:
 
 
 class Recorder:
-    """Wraps the pool's slots: (slot, sent, answered) for every projection."""
+    """Wraps the pool's slots: (slot, sent, answered) for every projection.
+
+    The local pool says nowhere when a worker is given a job and when it answers, so this
+    wraps a private method of its slots (``_Slot._receive``) until it does.
+    """
 
     def __init__(self):
         from projection_server.workers.local import pool
@@ -68,23 +70,20 @@ def run(workers: int, recorder: Recorder) -> dict[str, float]:
     from projection_server.service import prolog_bridge
 
     with tempfile.TemporaryDirectory() as bags:
-        projection.configure(bag_dir=bags, workers=workers)
-        pool = projection._get_backend()
-        deadline = time.monotonic() + 120.0
-        while None in pool.warm_ups:   # started and warm, as a node's workers soon are
-            if time.monotonic() > deadline:
-                raise RuntimeError('the workers did not start')
-            time.sleep(0.05)
+        projection.configure(bag_dir=bags, workers=workers)   # starts the workers
+        harness.wait_warm(os.getpid(), workers)   # and warm, as a node's workers soon are
         recorder.take()
         cpu, start = cpu_self(), time.perf_counter()
-        with prolog_bridge.solutions(QUERY, {'timeout': 600.0, 'sandbox': True}) as results:
+        with prolog_bridge.solutions(harness.TABLE_I,
+                                     {'timeout': 600.0, 'sandbox': True}) as results:
             solutions = [r for r in results if r['status'] == 'solution']
         wall, cpu = time.perf_counter() - start, cpu_self() - cpu
         spans = recorder.take()
         cached = []
         for _ in range(10):
             again = time.perf_counter()
-            with prolog_bridge.solutions(QUERY, {'timeout': 60.0, 'sandbox': True}) as results:
+            with prolog_bridge.solutions(harness.TABLE_I,
+                                         {'timeout': 60.0, 'sandbox': True}) as results:
                 if sum(r['status'] == 'solution' for r in results) != 18:
                     raise RuntimeError('the cached query lost solutions')
             cached.append(time.perf_counter() - again)
@@ -101,14 +100,13 @@ def run(workers: int, recorder: Recorder) -> dict[str, float]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__, repeat=3)
     parser.add_argument('--workers', type=int, nargs='+', default=[1, 2])
-    parser.add_argument('--repeat', type=int, default=3)
     args = parser.parse_args()
 
     from projection_server.service import prolog_bridge
 
-    prolog_bridge.load()
+    harness.prolog()   # the server's Prolog, loaded
     prolog_bridge.attach_engine()
     recorder = Recorder()
     runs: dict[int, list[dict[str, float]]] = {}
@@ -122,8 +120,7 @@ def main() -> int:
                   f'{result["cached"] * 1e3:.1f} ms', flush=True)
     print('service path benchmark (Table I through Prolog and the pool, in one process)')
     print(f'  settings: 18 projections, a fresh bag directory and warm workers each run, '
-          f'repeat={args.repeat}; python {platform.python_version()}, {os.cpu_count()} '
-          f'cores, load average {os.getloadavg()[0]:.1f}')
+          f'repeat={args.repeat}; {harness.machine()}')
     for workers, results in runs.items():
         ratio = statistics.median(x['wall'] / x['floor'] for x in results)
         print(f'  workers={workers}: median {statistics.median(x["wall"] for x in results):.2f}'

@@ -1,12 +1,12 @@
 """Table I and Table III at the default time step and at 2x and 4x finer ones, in-process.
 
-Runs the knowledge base's grasping and turning scenarios (read from SWI-Prolog) with
+Runs the knowledge base's grasping and turning scenarios (from the server's Prolog) with
 ``grasp_object`` over Table I's forces and positions and ``turn_pancake`` over Table III's
 angles, each at ``rate_hz`` x1, x2 and x4 (``Settings.for_projection``, what a query's
 ``physics`` option does; solver iterations as configured, or with ``--iterations scaled``
-x1, x2, x4 the program's own as bench/fidelity.py's reference has them), in two processes, and prints the
-outcome grids, the cells that agree with the default step, those that agree with the paper,
-and the median wall time per projection at each step:
+x1, x2, x4 the program's own as bench/fidelity.py's reference has them), in two
+processes, and prints the outcome grids, the cells that agree with the default step, those
+that agree with the paper, and the median wall time per projection at each step:
 
     tools/with_env.sh python bench/step_convergence.py [--only table1|table3] [--factors 1,2,4]
 
@@ -20,27 +20,13 @@ the finer answer is converged (it is when x4 and x8 find the same friction):
 
 from __future__ import annotations
 
-import argparse
 from concurrent.futures import ProcessPoolExecutor
-import json
 from pathlib import Path
 import statistics
-import subprocess
 import tempfile
 import time
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def kb_scenario(name: str) -> dict:
-    """A scenario description of the knowledge base, from SWI-Prolog."""
-    goal = (f'knowledge_base_load, scenario_description({name}, D), '
-            'json_write_dict(current_output, D), halt')
-    out = subprocess.run(
-        ['swipl', '-q', '-g', 'use_module(library(http/json))',
-         '-g', 'use_module(prolog/knowledge_base)', '-g', 'use_module(prolog/scenario)',
-         '-g', goal], cwd=ROOT, check=True, capture_output=True, text=True).stdout
-    return json.loads(out)
+import harness
 
 
 def outcome(job: tuple) -> tuple[tuple, str, float]:
@@ -89,7 +75,7 @@ def grip_boundary(job: tuple) -> tuple[int, float, float, list]:
 
 
 def main_grip(force: float, factors: list[int]) -> None:
-    scenario = kb_scenario('grasping')
+    scenario = harness.kb_scenario('grasping')
     jobs = [(scenario, force, f, 0.1, 0.4, 0.0025) for f in factors]
     with ProcessPoolExecutor(2) as pool:
         found = list(pool.map(grip_boundary, jobs))
@@ -105,7 +91,7 @@ def main_grip(force: float, factors: list[int]) -> None:
 def main() -> None:
     from projection_server.reproduce import paper
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.arguments(__doc__)
     parser.add_argument('--only', choices=['table1', 'table3', 'grip'])
     parser.add_argument('--factors', default='1,2,4')
     parser.add_argument('--iterations', choices=['fixed', 'scaled'], default='fixed',
@@ -127,7 +113,7 @@ def main() -> None:
     for key, (scenario_name, program, cells, expected) in tables.items():
         if args.only and key != args.only:
             continue
-        scenario = kb_scenario(scenario_name)
+        scenario = harness.kb_scenario(scenario_name)
         jobs = [(scenario, program, cell, factor, args.iterations == 'scaled')
                 for factor in factors for cell in cells]
         with ProcessPoolExecutor(2) as pool:
