@@ -46,6 +46,7 @@ __all__ = [
     'drop',
     'physics_settings',
     'prefetch',
+    'plan_problem',
     'prefetch_plan',
     'programs',
     'project',
@@ -112,31 +113,34 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
 
 def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
             timeout: float, owner: str | None = None,
-            physics: Mapping[str, Any] | None = None) -> dict[str, Any]:
+            physics: Mapping[str, Any] | None = None,
+            plan: list[Any] | None = None) -> dict[str, Any]:
     """Run one projection and return ``{'bag': path, 'timeline': timeline or None}``.
 
     The timeline (the dict of ``docs/contracts.md``) is the one the worker made from its
     samples; it is None when the bag was found in the bag directory, made by an earlier
     process (``translate_bag`` reads it). ``timeout`` is the wall-clock limit of the
     simulation in seconds; ``physics`` chooses engine settings (:func:`physics_settings`)
-    over the program's. An identical projection made before (same scenario, program,
-    parameters, settings and code) returns the existing bag.
+    over the program's; ``plan`` is the plan of the program ``plan``. An identical
+    projection made before (same scenario, program, parameters, settings, plan and code)
+    returns the existing bag.
 
     Raises:
         ProjectionError: with ``kind`` ``invalid_scenario``, ``unknown_program``,
             ``invalid_parameters``, ``timeout``, ``worker_crashed``, ``simulation_failed``,
             ``cancelled``...
     """
-    result = _wait(submit(scenario, program, params, timeout, owner, physics), owner)
+    result = _wait(submit(scenario, program, params, timeout, owner, physics, plan), owner)
     return {'bag': result.bag, 'timeline': result.timeline}
 
 
 def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
              timeout: float, owner: str | None = None,
-             physics: Mapping[str, Any] | None = None) -> str:
+             physics: Mapping[str, Any] | None = None,
+             plan: list[Any] | None = None) -> str:
     """Like :func:`project`, but return the path of the bag and keep the timeline for
     :func:`timeline`."""
-    future = submit(scenario, program, params, timeout, owner, physics)
+    future = submit(scenario, program, params, timeout, owner, physics, plan)
     cached = future.done()   # its bag was made before, or prefetched and is done
     started = time.monotonic()
     _log.debug('projection %s %s started', program, params)
@@ -174,19 +178,21 @@ def timeline(bag: str | os.PathLike[str]) -> dict[str, Any]:
 
 def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
            timeout: float, owner: str | None = None,
-           physics: Mapping[str, Any] | None = None) -> Future[ProjectionResult]:
+           physics: Mapping[str, Any] | None = None,
+           plan: list[Any] | None = None) -> Future[ProjectionResult]:
     """Like :func:`project`, but return at once with a future of the result.
 
     For running a query's parametrizations ahead of Prolog's backtracking; a later
     :func:`project` of the same projection waits for the same future.
     """
-    job = Job.checked(scenario, program, params, physics)
+    job = Job.checked(scenario, program, params, physics, plan)
     return _get_backend().submit(job, timeout, owner)
 
 
 def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
              timeout: float, owner: str | None = None,
-             physics: Mapping[str, Any] | None = None) -> int:
+             physics: Mapping[str, Any] | None = None,
+             plan: list[Any] | None = None) -> int:
     """Queue projections that a query will probably ask for next, all at once; return how
     many.
 
@@ -197,12 +203,26 @@ def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str,
     jobs = []
     for params in params_list:
         try:
-            jobs.append(Job.checked(scenario, program, params, physics))
+            jobs.append(Job.checked(scenario, program, params, physics, plan))
         except ProjectionError:
             pass
     if jobs:
         _get_backend().submit_all(jobs, timeout, owner)
     return len(jobs)
+
+
+def plan_problem(plan: list[Any], params: dict[str, Any]) -> list[str] | None:
+    """What is wrong with ``plan`` grounded with ``params``: None, or ``[kind, message]``
+    with kind ``duration`` (its bound of simulated time is too long) or ``value``."""
+    from projection_server.simulation.programs.plan import check_plan, PlanTooLong
+
+    try:
+        check_plan(plan, _programs.get('plan').check(params))
+    except PlanTooLong as exc:
+        return ['duration', exc.message]
+    except ProjectionError as exc:
+        return ['value', exc.message]
+    return None
 
 
 def prefetch_plan(program: str, params_list: list[dict[str, Any]],

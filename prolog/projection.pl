@@ -19,6 +19,7 @@
 :- use_module(library(janus), [py_call/2]).
 :- meta_predicate with_query_context(+, 0).
 :- use_module(scenario, [scenario_description/2]).
+:- use_module(plan, [plan_template/3]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1,
                          occurs/3]).
 
@@ -158,32 +159,70 @@ simulate(Scenario, Program, Params, Options, Log) :-
 
 % simulate(..., -Step): Step is step(I, Total, Program, Values), the 0-based place
 % of the projection in the enumeration, for make_projection's progress report.
-simulate(Scenario, Program, Params, Options, Log, step(I, Total, Program, Values)) :-
+simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Values)) :-
     must_be(atom, Scenario),
-    must_be(atom, Program),
     must_be(list, Params),
-    (   projection_program(Program, Formal)
-    ->  true
-    ;   existence_error(program, Program)
-    ),
+    program(Program0, Program, Formal),
     projection_options(Program, Options, Timeout, Physics),
     maplist(parse_param(Program, Formal), Params, Choices),
     check_unique(Choices),
+    plan_of(Program0, Choices, Plan),
     scenario_description(Scenario, Description0),
     % Made a Python dict once: every projection and prefetch of the query passes it on.
     py_call(dict(Description0), Description, [py_object(true)]),
     findall(Values, ( instantiate(Choices, Pairs),
                       dict_pairs(Values, params, Pairs) ), All),
+    check_plan(Plan, All),
     py_call('projection_server.projection':workers(), Depth),
-    py_call('projection_server.projection':prefetch_plan(Program, All, Depth), Plan),
+    py_call('projection_server.projection':prefetch_plan(Program, All, Depth), Ahead),
     Table =.. [params|All],
-    pairs_keys_values(Steps, All, Plan),
+    pairs_keys_values(Steps, All, Ahead),
     length(All, Total),
     query_owner(Owner),
-    nth0(I, Steps, Values-Ahead),
-    prefetch(Description, Program, Table, Ahead, Timeout, Physics, Owner),
+    Run = run(Description, Program, Timeout, Physics, Owner, Plan),
+    nth0(I, Steps, Values-Next),
+    prefetch(Run, Table, Next),
     maplist(bind_choice(Values), Choices),
-    run_simulation(Description, Program, Values, Timeout, Physics, Owner, Log).
+    run_simulation(Run, Values, Log).
+
+% program(+Program0, -Name, -Formal): a registered program and its formal
+% parameters, or a plan (Name `plan`, any parameters).
+program(Program, _, _) :-
+    var(Program), !,
+    instantiation_error(Program).
+program(plan(_), plan, any) :- !.
+program(Program, Program, Formal) :-
+    must_be(atom, Program),
+    (   projection_program(Program, Formal)
+    ->  true
+    ;   existence_error(program, Program)
+    ).
+
+% plan_of(+Program0, +Choices, -Plan): the plan's template (@none for a
+% registered program), its parameters referenced by name.
+plan_of(plan(Steps), Choices, Plan) :- !,
+    maplist([choice(Var, Name, _), Name-Var]>>true, Choices, Pairs),   % (not findall: it copies)
+    plan_template(Steps, Pairs, Plan).
+plan_of(_, _, @(none)).
+
+% check_plan(+Plan, +All): every parametrization grounds Plan to a plan the
+% interpreter runs: its values in their ranges, its simulated time bounded.
+check_plan(@(none), _) :- !.
+check_plan(Plan, All) :-
+    forall(member(Values, All),
+           (   py_call('projection_server.projection':plan_problem(Plan, Values), Problem),
+               (   Problem == @(none)
+               ->  true
+               ;   plan_error(Problem, Values)
+               )
+           )).
+
+plan_error([duration, Message], _) :- !,
+    atom_string(Msg, Message),
+    throw(error(resource_error(plan_duration), context(_, Msg))).
+plan_error([_, Message], Values) :-
+    atom_string(Msg, Message),
+    throw(error(domain_error(plan_value, Values), context(_, Msg))).
 
 bind_choice(Values, choice(Var, Name, _)) :-
     get_dict(Name, Values, Var).
@@ -194,12 +233,12 @@ bind_choice(Values, choice(Var, Name, _)) :-
 % program whose parametrizations share their first steps, the next Depth+1
 % families of them, each family at once.  Each is queued once: queueing it
 % again would cost a check and a key (a third of a cached query).
-prefetch(_, _, _, [], _, _, _) :- !.
-prefetch(Description, Program, Table, Ahead, Timeout, Physics, Owner) :-
+prefetch(_, _, []) :- !.
+prefetch(run(Description, Program, Timeout, Physics, Owner, Plan), Table, Ahead) :-
     findall(V, ( member(J, Ahead), A is J + 1, arg(A, Table, V) ), Next),
     py_call('projection_server.projection':prefetch(Description, Program, Next,
                                                     Timeout, physics=Physics,
-                                                    owner=Owner), _).
+                                                    owner=Owner, plan=Plan), _).
 
 projection_options(_, Timeout, Timeout, _{}) :-
     number(Timeout), !,
@@ -251,12 +290,13 @@ parse_param(Program, Formal, Param, choice(Var, Name, Values)) :-
     ;   type_error(projection_parameter, Param)
     ),
     must_be(atom, Name),
-    (   member(F, Formal), get_dict(name, F, Name0), atom_string(Name, Name0)
-    ->  true
-    ;   existence_error(program_parameter, Program:Name)
-    ),
     range_values(Range, Values),
-    maplist(check_value(F, Name), Values).
+    (   Formal == any                   % a plan's parameter: any name, any number
+    ->  must_be(list(number), Values)
+    ;   member(F, Formal), get_dict(name, F, Name0), atom_string(Name, Name0)
+    ->  maplist(check_value(F, Name), Values)
+    ;   existence_error(program_parameter, Program:Name)
+    ).
 
 range_values(range(Low, High, Step), Values) :- !,
     must_be(number, Low), must_be(number, High), must_be_positive(Step),
@@ -295,11 +335,11 @@ instantiate([choice(_, Name, Values)|T], [Name-Value|Pairs]) :-
     member(Value, Values),
     instantiate(T, Pairs).
 
-run_simulation(Description, Program, Values, Timeout, Physics, Owner, Log) :-
+run_simulation(run(Description, Program, Timeout, Physics, Owner, Plan), Values, Log) :-
     catch(py_call('projection_server.projection':simulate(Description, Program,
                                                           Values, Timeout,
                                                           physics=Physics,
-                                                          owner=Owner), Log0),
+                                                          owner=Owner, plan=Plan), Log0),
           error(python_error(Class, Value), _),
           projection_error(Class, Value)),
     atom_string(Log, Log0).

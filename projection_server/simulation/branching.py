@@ -106,10 +106,13 @@ def _grow(projection: Projection, log: _SharedLog, group: list[tuple[int, tuple[
             return 0
         params = [dict(job.params) for _, (job, _) in group]
         end = math.ceil(task.duration * physics.settings.physics.rate_hz - 1e-9)
+        # Step by step while every parametrization would command the same next: what a
+        # task commands may depend on the world (a plan's next step starts when the one
+        # under way has ended), so it is asked of the world as it is, step by step.
         step = physics.step_count
         while step < end and len({task.command_at(p, step) for p in params}) == 1:
+            projection.advance(step + 1)
             step += 1
-        projection.advance(step)
         subgroups: dict[Any, list[tuple[int, tuple[Job, Path]]]] = {}
         for member, p in zip(group, params):
             # Commands that never part (to the first one's end): each its own leaf.

@@ -11,8 +11,9 @@ import threading
 from typing import Any, TYPE_CHECKING
 
 from projection_server.canonical import canonical_json
-from projection_server.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.programs import get as get_program
+from projection_server.simulation.programs.plan import check_plan
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.settings import check_physics
 
@@ -56,7 +57,9 @@ _VALID_LOCK = threading.Lock()
 class Job:
     """One projection: a scenario description, a program name, its parameter values and the
     physics settings the query chose (:data:`~projection_server.settings.
-    PHYSICS_OPTIONS`; the others come from the settings file).
+    PHYSICS_OPTIONS`; the others come from the settings file); for the program ``plan``, the
+    plan itself (its steps, with parameter references:
+    :mod:`projection_server.simulation.programs.plan`).
 
     Construct with :meth:`checked`, which validates everything that can be checked without a
     simulator and fills in parameter defaults.
@@ -66,9 +69,11 @@ class Job:
     program: str
     params: dict[str, float]
     physics: dict[str, float] = field(default_factory=dict)
+    plan: list[Any] | None = None
 
     @classmethod
-    def checked(cls, scenario: Any, program: str, params: Any, physics: Any = None) -> Job:
+    def checked(cls, scenario: Any, program: str, params: Any, physics: Any = None,
+                plan: Any = None) -> Job:
         """Validate and normalize (raises ProjectionError with the matching kind)."""
         # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
         text = canonical_json(scenario)
@@ -78,9 +83,16 @@ class Job:
                 if len(_VALID_SCENARIOS) >= 64:
                     del _VALID_SCENARIOS[next(iter(_VALID_SCENARIOS))]
                 _VALID_SCENARIOS[text] = None
-        values = get_program(program).check(params if params is not None else {})
+        unit = get_program(program)
+        values = unit.check(params if params is not None else {})
         chosen = check_physics(physics if physics is not None else {})
-        job = cls(json.loads(text), program, values, chosen)
+        if unit.takes_plan:
+            plan = json.loads(canonical_json(plan))
+            check_plan(plan, values)
+        elif plan is not None:
+            raise ProjectionError(ErrorKind.INVALID_PARAMETERS,
+                                  f'{program} is a named program: it takes no plan')
+        job = cls(json.loads(text), program, values, chosen, plan)
         object.__setattr__(job, '_scenario_json', text)   # what the keys are made of
         return job
 
@@ -99,22 +111,24 @@ class Job:
         setup = get_program(self.program).setup(self.params)
         if setup is None:
             return None
-        text = _assembled({'scenario': self._scenario_json,
-                           'program': canonical_json(self.program),
-                           'setup': canonical_json(setup),
-                           'settings': settings.projection_json(self.program, self.physics)})
-        return hashlib.sha256(text.encode()).hexdigest()
+        parts = {'scenario': self._scenario_json, 'program': canonical_json(self.program),
+                 'setup': canonical_json(setup),
+                 'settings': settings.projection_json(self.program, self.physics)}
+        if self.plan is not None:
+            parts['plan'] = canonical_json(self.plan)
+        return hashlib.sha256(_assembled(parts).encode()).hexdigest()
 
     def key(self, settings: Settings) -> str:
         """Content hash of job, its settings and the code version: the cache key and the
         bag's name. Physics chosen by the query count as what they amount to, so choosing
         the program's own settings finds the same bag."""
-        text = _assembled({'scenario': self._scenario_json,
-                           'program': canonical_json(self.program),
-                           'params': canonical_json(self.params),
-                           'settings': settings.projection_json(self.program, self.physics),
-                           'code': canonical_json(code_version())})
-        return hashlib.sha256(text.encode()).hexdigest()
+        parts = {'scenario': self._scenario_json, 'program': canonical_json(self.program),
+                 'params': canonical_json(self.params),
+                 'settings': settings.projection_json(self.program, self.physics),
+                 'code': canonical_json(code_version())}
+        if self.plan is not None:
+            parts['plan'] = canonical_json(self.plan)
+        return hashlib.sha256(_assembled(parts).encode()).hexdigest()
 
 
 def _assembled(parts: dict[str, str]) -> str:

@@ -69,6 +69,7 @@ class Body:
     # A robot's: moved by its actuators, not by the world (it is not settled; its links
     # are logged as a chain under their parents).
     driven: bool = False
+    urdf: str | None = None   # the model file a robot was loaded from
 
 
 @dataclass(frozen=True)
@@ -143,25 +144,31 @@ class ObjectModel(Protocol):
 
 
 class Gripper:
-    """A parallel-jaw gripper on a gantry (lift along z, approach along x of its base frame).
+    """A parallel-jaw gripper, optionally on a gantry (lift along z, approach along x of its
+    base frame).
 
     The fingers are force limited: closing drives them at a set speed with a motor whose force
     saturates at the commanded grip force, so once the pads touch an object they squeeze it
     with that force, at most ``max_force``; they open to at most ``max_opening``.
     Position control corrects ``tracking_rate`` [1/s] of its error per second, whatever the
-    time step (Bullet's position gain is a fraction per step).
+    time step (Bullet's position gain is a fraction per step). ``joints`` has ``fingers``
+    and, on a gantry, ``lift`` and ``approach``; ``finger_links`` are the links that touch
+    what the gripper holds (default: the pads' links).
     """
 
     def __init__(self, client: Any, name: str, body_id: int, joints: dict[str, Any],
                  pads: list[Pad], max_joint_force: float, max_force: float = math.inf,
-                 max_opening: float = math.inf, position_gain: float = 0.1):
+                 max_opening: float = math.inf, position_gain: float = 0.1,
+                 finger_links: list[str] | None = None):
         self.name = name
         self.body_id = body_id
         self.pads = pads
         self._client = client
-        self._lift = joints['lift']
-        self._approach = joints['approach']
+        self._lift = joints.get('lift')
+        self._approach = joints.get('approach')
         self._fingers = tuple(joints['fingers'])
+        self._finger_links = (list(finger_links) if finger_links is not None
+                              else [pad.link_name for pad in pads])
         self._max_joint_force = max_joint_force
         self.max_force = max_force
         self.max_opening = max_opening
@@ -174,7 +181,12 @@ class Gripper:
 
     @property
     def finger_links(self) -> list[str]:
-        return [pad.link_name for pad in self.pads]
+        return self._finger_links
+
+    @property
+    def fingers(self) -> tuple[int, ...]:
+        """The finger joints' indices."""
+        return self._fingers
 
     def place(self, position: Vec3, orientation: Quat, approach: float, lift: float,
               opening: float) -> None:
@@ -273,10 +285,14 @@ def _bound_client_class() -> type:
 class Physics:
     """The simulation of one projection, with named access and queries."""
 
-    def __init__(self, client: Any, settings: Settings, scenario: Scenario | None = None):
+    def __init__(self, client: Any, settings: Settings, scenario: Scenario | None = None,
+                 tool_control: bool = False):
         self.client = client
         self.settings = settings
         self.scenario = scenario   # what the world is built from
+        # Robots are built to have their tool moved (plans), not driven joint by joint.
+        self.tool_control = tool_control
+        self.manipulators: dict[str, Any] = {}   # robot name -> its Manipulator
         self.step_count = 0
         self.bodies: dict[str, Body] = {}
         self.grippers: dict[str, Gripper] = {}

@@ -69,10 +69,13 @@ class Projection:
     def __init__(self, client: Any, job: Job, settings: Settings, bag: Any):
         self.scenario = scenario = parse_scenario(job.scenario)
         info = projection_info(job, settings, scenario.name)
-        self.physics = physics = build_world(client, scenario, job.settings(settings))
-        self.task = get_program(job.program).create(
-            physics, scenario, dict(job.params),
-            np.random.default_rng(int(info['job_key'][:16], 16)))
+        program = get_program(job.program)
+        self.physics = physics = build_world(client, scenario, job.settings(settings),
+                                             tool_control=program.takes_plan)
+        extra = {'plan': job.plan} if program.takes_plan else {}
+        self.task = program.create(physics, scenario, dict(job.params),
+                                   np.random.default_rng(int(info['job_key'][:16], 16)),
+                                   **extra)
         self.monitor = Monitor(physics, bag)
         self.monitor.start(info)
 

@@ -26,10 +26,12 @@ SETTLE_MIN, SETTLE_MAX = 0.1, 1.0   # s of settling at least and at most
 REST_SPEED = 1e-3        # m/s (and rad/s per 0.1 m) below which a body is at rest
 
 
-def build_world(client: Any, scenario: Scenario, settings: Settings) -> Physics:
-    """Configure ``client`` from ``settings`` and build every entity of ``scenario`` in it."""
+def build_world(client: Any, scenario: Scenario, settings: Settings,
+                tool_control: bool = False) -> Physics:
+    """Configure ``client`` from ``settings`` and build every entity of ``scenario`` in it;
+    with ``tool_control``, robots as manipulators whose tool a plan moves."""
     _configure(client, settings.physics)
-    physics = Physics(client, settings, scenario)
+    physics = Physics(client, settings, scenario, tool_control)
     for entity in scenario.entities:
         build = object_class(entity.cls).build
         if build is not None:

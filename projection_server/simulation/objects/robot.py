@@ -1,13 +1,17 @@
 """``robot``: built by the robot model its ``model`` names
-(:mod:`projection_server.simulation.robots`), with its ``gripper`` entity, if the scenario
-has one (a part of the robot in the knowledge base)."""
+(:mod:`projection_server.simulation.robots`): ``pr2`` with its ``gripper`` entity, if the
+scenario has one (a part of the robot in the knowledge base); ``urdf`` from the facts of a
+URDF arm (:mod:`projection_server.simulation.robots.urdf_arm`)."""
 
 from __future__ import annotations
 
 from typing import Any, TYPE_CHECKING
 
 from projection_server.simulation import robots
-from projection_server.simulation.objects.registry import NAME, ObjectClass, Property, register
+from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation.objects.registry import (FILE, NAME, NAMES, NUMBERS,
+                                                           ObjectClass, POSITIVE, Property,
+                                                           register, VECTOR)
 
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
@@ -17,19 +21,35 @@ __all__ = ['ROBOT']
 
 
 def build(physics: Physics, entity: Entity) -> None:
-    name = entity.properties['gripper']
+    name = entity.properties.get('gripper')
     gripper = next((e for e in physics.scenario.of_class('gripper') if e.name == name), None)
     robots.get(entity.properties['model']).build(physics, entity, gripper)
 
 
 def check(name: str, properties: dict[str, Any]) -> None:
-    robots.get(properties['model'])   # an unknown model is refused before any world is built
+    """The model exists (before any world is built) and honours every property given."""
+    model = robots.get(properties['model'])
+    unknown = sorted(set(properties) - {'model', *model.properties})
+    if unknown:
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'{name}: a {model.name} robot has no property '
+                              f'{", ".join(unknown)} (it takes: '
+                              f'{", ".join(["model", *model.properties])})')
+    if model.check is not None:
+        model.check(name, properties)
 
 
 ROBOT = register(ObjectClass(
     name='robot',
     properties=(Property('model', 'pr2', NAME, '', 'the robot model that builds it'),
-                Property('gripper', 'pr2_gripper', NAME, '', 'its gripper entity or asset')),
+                Property('gripper', None, NAME, '', 'pr2: its gripper entity or asset'),
+                Property('urdf', None, FILE, '', 'urdf: the model file'),
+                Property('tool_link', None, NAME, '', 'urdf: the link of the tool point'),
+                Property('tool_offset', None, VECTOR, 'm',
+                         "urdf: the tool point in the tool link's frame"),
+                Property('finger_joints', None, NAMES, '', 'urdf: the fingers\' joints'),
+                Property('max_force', None, POSITIVE, 'N', 'urdf: the grip force limit'),
+                Property('home', None, NUMBERS, 'rad or m', "urdf: the arm joints' start")),
     fixed={'shape': 'none'},
     build=build,
     check=check,

@@ -47,7 +47,8 @@ class Task(Protocol):
 
     The task of a program with ``setup_params`` also has ``command_at(params, step)``, what
     it would command for the step after ``step`` with the parameters ``params`` (hashable:
-    equal commands are equal values), and ``retarget(params)``, which makes it go on with
+    equal commands are equal values; asked when the world is at ``step``, so it may depend
+    on the world), and ``retarget(params)``, which makes it go on with
     ``params`` from the current step. ``params`` then differ from the task's own only in
     parameters that are not set-up parameters, and ``finished`` is false until the commands
     of any two such parametrizations have differed.
@@ -72,13 +73,19 @@ class Program:
     their commands part, so they can share those steps
     (:mod:`projection_server.simulation.branching`). None (the default): the program does not
     say, and each parametrization runs from the start.
+
+    A program that ``takes_plan`` (``plan``) is given the job's plan as ``create(...,
+    plan=plan)``; its parameters are the plan's, any names, and it drives robots through
+    their tool (``build_world``'s ``tool_control``). It is no named program
+    (:func:`describe` leaves it out).
     """
 
     name: str
     params: tuple[Parameter, ...]
-    create: Callable[[Physics, Scenario, dict[str, float], np.random.Generator], Task]
+    create: Callable[..., Task]
     doc: str = ''
     setup_params: tuple[str, ...] | None = None
+    takes_plan: bool = False
 
     def check(self, values: Mapping[str, Any]) -> dict[str, float]:
         """Actual parameter values: given ones checked against their ranges, defaults added.
@@ -88,6 +95,8 @@ class Program:
         """
         if not isinstance(values, dict):
             raise ProjectionError(ErrorKind.INVALID_PARAMETERS, 'parameters must be a dict')
+        if self.takes_plan:
+            return _plan_values(values)
         known = {p.name: p for p in self.params}
         unknown = sorted(set(values) - set(known))
         if unknown:
@@ -150,4 +159,20 @@ def get(name: str) -> Program:
 def describe() -> list[dict[str, Any]]:
     """Every program with its formal parameters, for Prolog (sorted by name)."""
     plugins.load(ENTRY_POINTS)
-    return [_PROGRAMS[name].describe() for name in sorted(_PROGRAMS)]
+    return [_PROGRAMS[name].describe() for name in sorted(_PROGRAMS)
+            if not _PROGRAMS[name].takes_plan]
+
+
+def _plan_values(values: Mapping[str, Any]) -> dict[str, float]:
+    """A plan's parameter values: any names, finite numbers of any sign."""
+    checked = {}
+    for name, value in values.items():
+        if not isinstance(name, str) or not name:
+            raise ProjectionError(ErrorKind.INVALID_PARAMETERS,
+                                  f'a parameter name must be a non-empty string: {name!r}')
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or not math.isfinite(value)):
+            raise ProjectionError(ErrorKind.INVALID_PARAMETERS,
+                                  f'plan: {name} must be a number, got {value!r}')
+        checked[name] = float(value)
+    return checked

@@ -1,6 +1,8 @@
 """``pr2``: the PR2's parallel-jaw gripper on a gantry (lift along z, approach along x of
 its base frame), parked :data:`PARK_HEIGHT` above the robot's pose until a program places
-it. No arm is simulated.
+it; for plans, on six joints that move its tool point anywhere in reach and turn it any
+way (:class:`~projection_server.simulation.robots.manipulator.CartesianGantry`). No arm is
+simulated.
 
 The gripper's data are a URDF and a YAML description beside it (``assets/<name>.urdf`` +
 ``.yaml``, ``<name>`` the robot's ``gripper`` or the stem of its gripper entity's ``urdf``):
@@ -20,6 +22,7 @@ import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.physics import Body, Gripper, Pad, Shape
+from projection_server.simulation.robots.manipulator import CartesianGantry
 from projection_server.simulation.robots.registry import assets_dir, register, RobotModel
 
 if TYPE_CHECKING:
@@ -30,18 +33,24 @@ __all__ = ['PARK_HEIGHT', 'PR2', 'TRACKING_RATE']
 
 PARK_HEIGHT = 1.0   # m above the robot's pose, out of the way until a program moves it
 TRACKING_RATE = 24.0     # 1/s: position control's error correction (0.1 per step at 240 Hz)
+OPEN_WIDTH = 0.07        # m between the pads of a parked six-joint gripper
+DEFAULT_GRIPPER = 'pr2_gripper'   # the asset of a robot without a gripper entity
 
 
 def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> None:
-    """The robot's gripper on its gantry; ``gripper`` is the gripper's own entity, if the
-    scenario describes it (its friction and asset then come from there)."""
+    """The robot's gripper on its gantry, or, for a program that moves the tool
+    (``physics.tool_control``: plans), on six joints (``free_urdf`` of its description);
+    ``gripper`` is the gripper's own entity, if the scenario describes it (its friction and
+    asset then come from there)."""
     c = physics.client
     asset = (Path(gripper.properties['urdf']).stem if gripper is not None
-             else entity.properties['gripper'])
+             else entity.properties.get('gripper', DEFAULT_GRIPPER))
     spec = _gripper_spec(asset)
-    urdf = assets_dir() / spec['urdf']
+    free = physics.tool_control
+    urdf = assets_dir() / spec['free_urdf' if free else 'urdf']
     x, y, z = entity.pose.xyz
-    body_id = c.loadURDF(str(urdf), (x, y, z + PARK_HEIGHT), useFixedBase=True)
+    body_id = c.loadURDF(str(urdf), (x, y, z if free else z + PARK_HEIGHT),
+                         useFixedBase=True)
     joints, links = {}, {}
     for j in range(c.getNumJoints(body_id)):
         info = c.getJointInfo(body_id, j)
@@ -49,16 +58,19 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
         links[j] = info[12].decode()
     link_index = {name: j for j, name in links.items()}
     try:
-        joint_map = {'lift': joints[spec['joints']['lift']],
-                     'approach': joints[spec['joints']['approach']],
-                     'fingers': [joints[n] for n in spec['joints']['fingers']]}
+        joint_map = {'fingers': [joints[n] for n in spec['joints']['fingers']]}
+        if free:
+            axes = [joints[n] for n in spec['free_joints']]
+        else:
+            joint_map.update(lift=joints[spec['joints']['lift']],
+                             approach=joints[spec['joints']['approach']])
         boxes = _urdf_boxes(urdf)
         pads = [_pad(link_index[pad['link']], pad, boxes[pad['collision']],
                      float(spec['pad_stiffness']), float(spec['pad_rim_radius']))
                 for pad in spec['pads']]
     except KeyError as exc:
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
-                              f'gripper asset {spec["urdf"]}: unknown name {exc}') from exc
+                              f'gripper asset {urdf.name}: unknown name {exc}') from exc
     link_shapes: dict[int, list[tuple[Shape, tuple[float, float, float]]]] = {}
     for box in boxes.values():
         link_shapes.setdefault(link_index[box['link']], []).append(
@@ -75,9 +87,31 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
     body = physics.add_body(Body(entity.name, entity.cls, body_id, False, None,
                                  links=links, link_shapes=link_shapes, driven=True))
     gain = min(1.0, TRACKING_RATE / physics.settings.physics.rate_hz)
-    physics.grippers[entity.name] = Gripper(c, body.name, body_id, joint_map, pads,
-                                            float(spec['gantry_force']), position_gain=gain,
-                                            **limits)
+    hand = Gripper(c, body.name, body_id, joint_map, pads, float(spec['gantry_force']),
+                   position_gain=gain, **limits)
+    physics.grippers[entity.name] = hand
+    if free:
+        _park(physics, entity.name, body_id, axes, hand, spec, gain)
+
+
+def _park(physics: Physics, name: str, body_id: int, axes: list[int], hand: Gripper,
+          spec: dict[str, Any], gain: float) -> None:
+    """The six-joint gripper as a manipulator, parked :data:`PARK_HEIGHT` above the robot's
+    pose, pointing along +x, its fingers open."""
+    c = physics.client
+    tool = CartesianGantry(c, name, body_id, axes, axes[-1], hand,
+                           float(spec['gantry_force']), float(spec['free_torque']), gain)
+    for joint, value in zip(axes, (0.0, 0.0, PARK_HEIGHT, 0.0, 0.0, math.pi / 2)):
+        c.resetJointState(body_id, joint, value)
+    if math.isinf(hand.max_opening):   # no gripper entity: the fingers' own travel
+        hand.max_opening = sum(c.getJointInfo(body_id, j)[9] for j in hand.fingers)
+    position, orientation = tool.tool_pose()
+    tool.servo(position, orientation)
+    opening = min(hand.max_opening, OPEN_WIDTH)
+    for finger in hand.fingers:
+        c.resetJointState(body_id, finger, opening / 2)
+    hand.open(opening, speed=0.1)
+    physics.manipulators[name] = tool
 
 
 @functools.cache
@@ -121,4 +155,5 @@ def _pad(link: int, pad: dict[str, Any], box: dict[str, Any], stiffness: float,
                (size[others[0]] / 2, size[others[1]] / 2), stiffness, rim_radius)
 
 
-PR2 = register(RobotModel('pr2', build, doc=' '.join(__doc__.split('\n\n')[0].split())))
+PR2 = register(RobotModel('pr2', build, properties=('gripper',),
+                          doc=' '.join(__doc__.split('\n\n')[0].split())))

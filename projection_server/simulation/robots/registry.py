@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, TYPE_CHECKING
+from typing import Any, Callable, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation import plugins
@@ -29,10 +29,15 @@ ENTRY_POINTS = 'projection_server.robots'
 class RobotModel:
     """A robot model: ``build(physics, robot, gripper)`` adds the robot's bodies and
     actuators to the world for the ``robot`` entity; ``gripper`` is the entity of its
-    gripper when the scenario describes it (its friction and limits come from there)."""
+    gripper when the scenario describes it (its friction and limits come from there).
+
+    ``properties`` are the robot entity's properties the model honours (besides ``model``);
+    ``check(name, properties)`` checks them before any world is built."""
 
     name: str
     build: Callable[[Physics, Entity, Entity | None], None]
+    properties: tuple[str, ...] = ()
+    check: Callable[[str, dict[str, Any]], None] | None = None
     doc: str = ''
 
 
