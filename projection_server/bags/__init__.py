@@ -25,6 +25,9 @@ Topics (:data:`TOPICS`):
 ``/projection/contacts``  ``ContactArray``, every monitoring step
 ``/projection/gripper``   ``GripperState``, every monitoring step, one per gripper
 ``/projection/objects``   ``ObjectStateArray``, every monitoring step (loads, broken flags)
+``/projection/task``      ``TaskState``, every monitoring step, one per robot, of tasks that
+                          report their state: the plan step (or program phase) under way
+                          and its target
 ========================  ===================================================================
 
 Each topic records the QoS its publisher would offer (:func:`offered_qos`), as rosbag2

@@ -38,6 +38,7 @@ TOPICS = {
     'contacts': '/projection/contacts',
     'gripper': '/projection/gripper',
     'objects': '/projection/objects',
+    'task': '/projection/task',
     'clock': '/clock',
 }
 # Published once and latched: late subscribers must still get it.
@@ -111,6 +112,8 @@ class Record(NamedTuple):
     * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal z), ...]``;
     * ``gripper``: ``(name, command, finger links)``;
     * ``objects``: ``[(name, load, load limit, broken), ...]``;
+    * ``task``: ``(robot, step, action, target)``, one per robot (of tasks that report
+      their state);
     * ``particles``: ``{fluid: positions (n, 3)}``.
     """
 

@@ -10,6 +10,11 @@ Particle fluids' contacts are those of the sample's step.
 Particle fluids are not on ``/tf``: each monitoring step writes one ``MarkerArray`` on the
 markers topic with a ``SPHERE_LIST`` marker per fluid (namespace :data:`PARTICLES_NS`, text
 = the fluid's name, points = the particles' world positions).
+
+A task that reports its state (a method ``state() -> [(robot, step, action, target),
+...]``: the index of the plan step under way or -1, the step's or the program phase's name,
+the entity it acts on or ``''``) has it written every monitoring step, a ``TaskState`` per
+robot; a task without that method has nothing written.
 """
 
 from __future__ import annotations
@@ -41,9 +46,11 @@ class Monitor:
     CdrTemplate` s of their layout (kept per process), from the numbers of the sample.
     """
 
-    def __init__(self, physics: Physics, bag: BagWriter):
+    def __init__(self, physics: Physics, bag: BagWriter, task: Any = None):
+        """``task``: the projection's task; its ``state()``, if it has one, is logged."""
         self.physics = physics
         self.bag = bag
+        self._task_state = getattr(task, 'state', None)
         self.records: list[Record] = []
         self.contacts = ContactAggregator(physics)
         physics.step_hooks.append(self.contacts.add_step)
@@ -128,6 +135,12 @@ class Monitor:
         messages.append((TOPICS['objects'], _MSG + 'ObjectStateArray',
                          self._objects[1](values)))
         records.append(Record('objects', t, states))
+        if self._task_state is not None:
+            for robot, step, action, target in self._task_state():
+                state = (str(robot), int(step), str(action), str(target))
+                messages.append((TOPICS['task'], _MSG + 'TaskState',
+                                 _task_template(state).pack((sec, nanosec))))
+                records.append(Record('task', t, state))
         self.bag.write_sample(t, messages)
 
     # --- the sample's parts -------------------------------------------------------------
@@ -260,6 +273,15 @@ def _objects_template(names: tuple[str, ...]) -> CdrTemplate:
     return _template(_MSG + 'ObjectStateArray', _new(
         _MSG + 'ObjectStateArray', header=_header(0), objects=states),
         ('header.stamp.*', 'objects.*'))
+
+
+@functools.lru_cache(maxsize=256)
+def _task_template(state: tuple[str, int, str, str]) -> CdrTemplate:
+    """A ``TaskState`` of ``(robot, step, action, target)``: a task has a few states."""
+    robot, step, action, target = state
+    return _template(_MSG + 'TaskState', _new(
+        _MSG + 'TaskState', header=_header(0), robot=robot, step=step, action=action,
+        target=target), ('header.stamp.*',))
 
 
 @functools.lru_cache(maxsize=64)

@@ -35,6 +35,16 @@ def test_every_topic_records_the_qos_its_publisher_offers(grasp_bag):
                                           else QosDurability.VOLATILE), topic
 
 
+def test_the_task_state_of_every_sample_names_the_grasps_phase_and_target(grasp_bag):
+    states = [(t, m.robot, m.step, m.action, m.target)
+              for _, t, m in read_bag(grasp_bag, ['/projection/task'])]
+    assert [t for t, *_ in states] == [t for _, t, _ in read_bag(grasp_bag, ['/tf'])]
+    assert {state[1:3] + state[4:] for state in states} == {('pr2_robot', -1, 'egg1')}
+    phases = [state[3] for state in states]
+    assert sorted(set(phases), key=phases.index) == ['settle', 'approach', 'close', 'squeeze',
+                                                     'lift', 'hold']
+
+
 def test_the_metadata_file_carries_the_profiles_as_rosbag2_writes_them(grasp_bag):
     import yaml
 
