@@ -267,7 +267,7 @@ def test_a_projections_bag_holds_rosbags_bytes_and_its_timeline(tmp_path, make_s
             assert bytes(raw) == bytes(store.serialize_cdr(message, connection.msgtype))
             counts[connection.topic] = counts.get(connection.topic, 0) + 1
     assert counts['/tf'] == counts['/clock'] == counts['/projection/contacts'] > 200
-    assert counts['/projection/task'] == counts['/tf']
+    assert counts['/projection/task'] == counts['/tf'] and counts['/robot_description'] == 1
     assert translate_bag(tmp_path / 'grasp') == timeline
     assert 'break' in [event[0] for event in timeline['events']]
 
@@ -301,5 +301,5 @@ def test_a_task_without_a_state_writes_no_task_states(tmp_path, make_scenario):
     job = Job.checked(make_scenario(), 'wait', {'duration': 0.2})
     run_projection(job, load_settings(), tmp_path / 'wait')
     topics = {topic for topic, _, _ in read_bag(tmp_path / 'wait')}
-    assert '/tf' in topics
+    assert '/tf' in topics and '/robot_description' in topics
     assert '/projection/task' not in topics
