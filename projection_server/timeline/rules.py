@@ -7,6 +7,7 @@ loads and lift heights. Each is defined in the module doc of
 from __future__ import annotations
 
 from collections import defaultdict
+import functools
 import math
 from typing import Any, TYPE_CHECKING
 
@@ -14,7 +15,8 @@ import numpy as np
 
 from projection_server.bags.schema import REFERENCE_LINKS
 from projection_server.timeline import turning
-from projection_server.timeline.intervals import fluent_intervals, holds_at
+from projection_server.timeline.intervals import (fluent_intervals, holds_at,
+                                                  intervals_from_samples)
 
 if TYPE_CHECKING:
     from projection_server.settings import TimelineSettings
@@ -60,8 +62,10 @@ class Rules:
         self.grippers = sorted({g for x in samples for g in x.grippers})
         # Moving bodies: logged on /tf (static ones are on /tf_static), without link frames.
         self.bodies = sorted({name for x in samples for name in x.moving} - set(self.grippers))
-        self._booleans: dict[tuple[str, tuple[str, ...]], list[bool]] = defaultdict(
-            lambda: [False] * len(samples))
+        falses = functools.partial(list, [False] * len(samples))
+        self._booleans: dict[tuple[str, tuple[str, ...]], list[bool]] = defaultdict(falses)
+        # Per sample, unmerged: whether a body touches anything (drops).
+        self._touching: dict[str, list[bool]] = defaultdict(falses)
         self._sample_fluents()
         self._intervals = {key: fluent_intervals(self.times, values, self.settings.gap_merge)
                            for key, values in self._booleans.items()}
@@ -85,6 +89,7 @@ class Rules:
                 self._booleans[('contact', tuple(sorted((body_a, body_b))))][i] = True
                 touching[body_a].add((body_b, link_b))
                 touching[body_b].add((body_a, link_a))
+                self._touching[body_a][i] = self._touching[body_b][i] = True
                 for obj, support, up in ((body_a, body_b, normal_z),
                                          (body_b, body_a, -normal_z)):
                     if support not in self.grippers and up >= cos_support:
@@ -205,16 +210,24 @@ class Rules:
         return [shift] if shift is not None else []
 
     def _drops(self) -> list[list[Any]]:
+        """Free falls: a run of samples in which O touches nothing (a sample's contacts are
+        those of every physics step since the previous one), during which O sinks at least
+        ``drop_min_fall`` below where it last touched something. That contact was within the
+        period of the sample before the run: its height is the higher of that period's
+        ends. The lowest height counts the sample it lands in."""
         events = []
+        indices = range(len(self.samples))
         for obj in self.bodies:
-            contacts = [iv for (name, args), ivs in self._intervals.items()
-                        if name == 'contact' and obj in args for iv in ivs]
-            free = [not holds_at(contacts, t) for t in self.times]
-            for start, end in fluent_intervals(self.times, free, 0.0):
-                if end - start < self.settings.drop_min_duration:
-                    continue
-                if self._height(obj, end) < self._height(obj, start):
-                    events.append(['drop', [obj], start, end])
+            heights = [self._height_at(obj, sample) for sample in self.samples]
+            touching = self._touching[obj]
+            for i, j in intervals_from_samples(indices, [not x for x in touching]):
+                before = [h for h in heights[max(0, i - 2):i] or heights[:1]
+                          if not math.isnan(h)]
+                # The lowest height until it lands, in the sample it lands in, if any.
+                fallen = [h for h in heights[i:j + 2] if not math.isnan(h)]
+                if before and fallen and \
+                        max(before) - min(fallen) >= self.settings.drop_min_fall:
+                    events.append(['drop', [obj], self.times[i], self.times[j]])
         return events
 
     # --- quantities ---------------------------------------------------------------------
@@ -249,11 +262,10 @@ class Rules:
     def _broken_at(self, obj: str, time: float) -> bool:
         return holds_at(self.intervals('broken', obj), time)
 
-    def _height(self, obj: str, time: float) -> float:
-        for sample in self.samples:
-            if sample.t >= time and obj in sample.poses:
-                return float(sample.poses[obj][0][2])
-        return math.nan
+    @staticmethod
+    def _height_at(obj: str, sample: Sample) -> float:
+        pose = sample.poses.get(obj)
+        return float(pose[0][2]) if pose is not None else math.nan
 
     def _relative_pose(self, obj: str, sample: Sample
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

@@ -7,10 +7,13 @@ projection's checked scenario. Every monitoring sample
 (one ``ContactArray``, ``/tf``, ``GripperState`` and ``ObjectStateArray`` per step) gives a
 truth value of each fluent; fluents hold on maximal intervals of true samples, with gaps
 shorter than ``timeline.gap_merge`` merged; events are read off those intervals. The
-thresholds are the ``timeline`` settings recorded in the bag itself. The translation has
-three stages: :mod:`~projection_server.timeline.samples` makes the samples of the records,
-:mod:`~projection_server.timeline.rules` reads the fluents, events and quantities of bodies
-off them, and :mod:`~projection_server.timeline.fluids` those of particle fluids.
+thresholds are the ``timeline`` settings recorded in the bag itself, all in physical units
+(see ``config/physics.yaml``; a setting a bag predates has the settings file's value). A
+sample's contacts are those of every physics step since the previous sample. The
+translation has three stages: :mod:`~projection_server.timeline.samples` makes the samples
+of the records, :mod:`~projection_server.timeline.rules` reads the fluents, events and
+quantities of bodies off them, and :mod:`~projection_server.timeline.fluids` those of
+particle fluids.
 
 Fluents (arguments are entity names):
 
@@ -43,8 +46,13 @@ Events (``[name, args, start, end]``, points have start = end):
   it), and no ``slip(O)`` ends that grasp.
 * ``break(O)``: ``broken(O)`` begins.
 * ``flip(P)``: ``upside_down(P)`` begins.
-* ``drop(O)``: O touches nothing for at least ``drop_min_duration`` and falls meanwhile;
-  the event spans that time.
+* ``drop(O)``: a free fall: O touches nothing (no contact of at least
+  ``contact_force_min``) while it falls at least ``drop_min_fall`` below where it last
+  touched something (1 cm, 45 ms from rest: two or three samples at 60 Hz). The event spans
+  the samples without contact. Where it last touched is the higher of its heights at the
+  ends of the period of the last sample with contact (that contact was within it); the
+  fall's lowest point counts the sample it lands in. A body resting, sliding or carried
+  touches something in every sample, and does not drop.
 
 * ``spill(F)``: a particle of fluid F first reaches the table (its centre within two
   particle radii of the table's top, or lower).
@@ -63,6 +71,7 @@ The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from typing import Any, TYPE_CHECKING
@@ -98,7 +107,8 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
         samples.add(*record)
     info, samples_ = samples.finish(bag)
     settings_json = json.loads(info.settings_json)
-    rules = Rules(samples_, TimelineSettings(**settings_json['timeline']))
+    settings = TimelineSettings.recorded(settings_json['timeline'])
+    rules = Rules(samples_, settings)
     fluids = Fluids(samples_, scenario)
     return {
         'fluents': rules.fluents(),
@@ -110,7 +120,7 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
             'params': json.loads(info.parameters_json), 'job_key': info.job_key,
             'code_version': info.code_version,
             'duration': samples_[-1].t if samples_ else 0.0, 'samples': len(samples_),
-            'timeline_settings': settings_json['timeline'],
+            'timeline_settings': dataclasses.asdict(settings),
         },
     }
 
