@@ -81,6 +81,7 @@ class TimelineSettings:
     slip_angle: float           # rad
     grasp_settle: float         # s
     drop_min_fall: float        # m
+    tip_angle: float            # rad
 
     @classmethod
     def recorded(cls, data: Mapping[str, Any], current: TimelineSettings | None = None

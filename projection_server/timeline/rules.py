@@ -1,7 +1,7 @@
 """The stage of a timeline that reads the fluents, events and quantities of bodies off the
 monitoring samples (:class:`Rules`): contacts, support, grasps, breaks and flips, drops,
-loads and lift heights. Each is defined in the module doc of
-:mod:`projection_server.timeline.translate`, the one list of them all.
+tipping over, loads, lift heights, displacements and final poses. Each is defined in the
+module doc of :mod:`projection_server.timeline.translate`, the one list of them all.
 """
 
 from __future__ import annotations
@@ -165,6 +165,7 @@ class Rules:
                 elif name == 'upside_down':
                     events.append(['flip', [obj], start, start])
         events.extend(self._drops())
+        events.extend(self._tips())
         return sorted_events(events)
 
     def _grip(self, obj: str, start: float, end: float) -> list[list[Any]]:
@@ -230,6 +231,24 @@ class Rules:
                     events.append(['drop', [obj], self.times[i], self.times[j]])
         return events
 
+    def _tips(self) -> list[list[Any]]:
+        """The first sample at which a body's z axis is more than ``tip_angle`` from its
+        z axis at its first sample (once per body)."""
+        events = []
+        limit = math.cos(self.settings.tip_angle)
+        for obj in self.bodies:
+            up = None
+            for sample in self.samples:
+                pose = sample.poses.get(obj)
+                if pose is None:
+                    continue
+                if up is None:
+                    up = pose[1][:, 2]
+                elif float(up @ pose[1][:, 2]) < limit:
+                    events.append(['tipped_over', [obj], sample.t, sample.t])
+                    break
+        return events
+
     # --- quantities ---------------------------------------------------------------------
     def quantities(self) -> list[list[Any]]:
         """The quantities ``[name, args, value]``."""
@@ -244,8 +263,13 @@ class Rules:
         rows += [['max_load', [name], value] for name, value in sorted(loads.items())]
         rows += [['load_limit', [name], value] for name, value in sorted(limits.items())]
         for obj in self.bodies:
-            heights = [float(x.poses[obj][0][2]) for x in self.samples if obj in x.poses]
+            poses = [x.poses for x in self.samples if obj in x.poses]
+            heights = [float(p[obj][0][2]) for p in poses]
+            first, last = poses[0][obj][0], poses[-1][obj][0]
             rows.append(['lift_height', [obj], max(heights) - heights[0]])
+            rows.append(['displacement', [obj], float(np.linalg.norm(last - first))])
+            rows.append(['final_pose', [obj], [[float(v) for v in last],
+                                               list(poses[-1].quaternion(obj))]])
         return rows
 
     # --- helpers ------------------------------------------------------------------------

@@ -9,11 +9,12 @@ truth value of each fluent; fluents hold on maximal intervals of true samples, w
 shorter than ``timeline.gap_merge`` merged; events are read off those intervals. The
 thresholds are the ``timeline`` settings recorded in the bag itself, all in physical units
 (see ``config/physics.yaml``; a setting a bag predates has the settings file's value). A
-sample's contacts are those of every physics step since the previous sample. The
-translation has three stages: :mod:`~projection_server.timeline.samples` makes the samples
-of the records, :mod:`~projection_server.timeline.rules` reads the fluents, events and
-quantities of bodies off them, and :mod:`~projection_server.timeline.fluids` those of
-particle fluids.
+sample's contacts are those of every physics step since the previous sample. Bodies are the
+moving bodies (on ``/tf``) but grippers and particle fluids; link frames (``body/link``) are
+not bodies. The translation has three stages: :mod:`~projection_server.timeline.samples`
+makes the samples of the records, :mod:`~projection_server.timeline.rules` reads the
+fluents, events and quantities of bodies off them, and
+:mod:`~projection_server.timeline.fluids` those of particle fluids.
 
 Fluents (arguments are entity names):
 
@@ -53,12 +54,18 @@ Events (``[name, args, start, end]``, points have start = end):
   ends of the period of the last sample with contact (that contact was within it); the
   fall's lowest point counts the sample it lands in. A body resting, sliding or carried
   touches something in every sample, and does not drop.
+* ``tipped_over(O)``: O's z axis is more than ``tip_angle`` from its z axis at the first
+  sample, for a body O; a point at the first sample where it is, once per projection (what
+  is asked is whether O tipped over; ``upside_down`` and ``final_pose`` say how it ended).
+  A tool a program turns (the poured cup, the flipped spatula) tips over too.
 
 * ``spill(F)``: a particle of fluid F first reaches the table (its centre within two
   particle radii of the table's top, or lower).
 
-Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects,
-``lift_height(O)`` [m] (highest minus initial height) of every moving body. Of particle
+Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects; of every body
+O, ``lift_height(O)`` [m] (highest minus initial height), ``displacement(O)`` [m] (the
+distance from its first to its last sample's position) and ``final_pose(O)``, its world pose
+``[[X, Y, Z], [QX, QY, QZ, QW]]`` [m] at the last sample (a unit quaternion). Of particle
 fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
 ``particles_on(M)`` per pancake maker M, ``particles_in(C)`` per cup C,
 ``particles_spilled(F)`` (neither in a cup nor on a maker) per fluid F,

@@ -1,9 +1,11 @@
-"""Outcomes for any object: drops as free falls, read off constructed monitoring samples and
-off projections; and bags that recorded older timeline settings."""
+"""Outcomes for any object: drops as free falls, tipping over, displacements and final
+poses, read off constructed monitoring samples and off projections; and bags that recorded
+older timeline settings."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -105,6 +107,68 @@ def test_a_box_lowered_in_a_gripper_does_not_drop():
     assert events(samples, 'drop') == []
 
 
+# --- tipped_over: the up axis more than tip_angle from its start --------------------------
+
+def rotation_x(angle):
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def turning_box(angles):
+    return [sample(k / 60, {'box': (np.zeros(3), rotation_x(a))}) for k, a in enumerate(angles)]
+
+
+def test_a_box_turned_past_45_degrees_tips_over_at_the_first_sample_past_them():
+    angles = [math.radians(k) for k in range(0, 91)]
+    (tip,) = events(turning_box(angles), 'tipped_over')
+    assert tip[1] == ['box'] and tip[2] == tip[3] == pytest.approx(46 / 60)
+
+
+def test_a_box_that_rocks_by_30_degrees_does_not_tip_over():
+    angles = [math.radians(30) * math.sin(k / 10) for k in range(200)]
+    assert events(turning_box(angles), 'tipped_over') == []
+
+
+def test_a_box_tips_over_once_even_if_it_is_righted_and_tipped_again():
+    angles = [math.radians(90) * abs(math.sin(k / 20)) for k in range(200)]
+    assert len(events(turning_box(angles), 'tipped_over')) == 1
+
+
+def test_the_up_axis_is_compared_with_the_first_samples_not_with_the_world():
+    start = rotation_x(math.radians(80))   # lying on its side from the start
+    samples = [sample(k / 60, {'box': (np.zeros(3), start @ rotation_x(math.radians(k)))})
+               for k in range(40)]
+    assert events(samples, 'tipped_over') == []
+
+
+# --- displacement(O) and final_pose(O) ----------------------------------------------------
+
+def test_every_body_has_its_displacement_and_final_pose():
+    turned = (0.0, 0.0, math.sin(0.3), math.cos(0.3))   # 0.6 rad about z
+    samples = []
+    for k in range(31):
+        poses = Poses()
+        s = k / 30
+        poses.add([('world', 'box', (0.3 * s, 0.4 * s, 1.0),
+                    turned if k == 30 else (0.0, 0.0, 0.0, 1.0))])
+        samples.append(Sample(k / 60, poses=poses, moving={'box'}))
+    rules = Rules(samples, load_settings().timeline)
+    quantities = {(q[0], tuple(q[1])): q[2] for q in rules.quantities()}
+    assert quantities[('displacement', ('box',))] == pytest.approx(0.5)
+    position, quaternion = quantities[('final_pose', ('box',))]
+    assert position == pytest.approx([0.3, 0.4, 1.0]) and quaternion == list(turned)
+    assert json.loads(json.dumps(quantities[('final_pose', ('box',))])) == [position,
+                                                                            quaternion]
+
+
+def test_a_final_pose_of_a_composed_frame_is_a_unit_quaternion_of_its_rotation():
+    poses = Poses()
+    poses.setdefault('box', (np.zeros(3), rotation_x(2.5)))
+    x, y, z, w = poses.quaternion('box')
+    assert (x, y, z) == pytest.approx((math.sin(1.25), 0.0, 0.0)) and w == pytest.approx(
+        math.cos(1.25))
+
+
 # --- settings -------------------------------------------------------------------------------
 
 def test_a_bag_with_the_old_drop_setting_is_read_with_the_files_new_ones():
@@ -114,7 +178,8 @@ def test_a_bag_with_the_old_drop_setting_is_read_with_the_files_new_ones():
            'drop_min_duration': 0.05}
     settings = TimelineSettings.recorded(old)
     assert settings.gap_merge == 0.2   # what the bag recorded
-    assert settings.drop_min_fall == current.drop_min_fall
+    assert (settings.drop_min_fall, settings.tip_angle) == (current.drop_min_fall,
+                                                            current.tip_angle)
     assert TimelineSettings.recorded(dataclasses.asdict(current)) == current
 
 
