@@ -1,7 +1,8 @@
 """The stage of a timeline that reads the fluents, events and quantities of bodies off the
 monitoring samples (:class:`Rules`): contacts, support, grasps, breaks and flips, drops,
-tipping over, loads, lift heights, displacements and final poses. Each is defined in the
-module doc of :mod:`projection_server.timeline.translate`, the one list of them all.
+tipping over, robots' collisions, loads, lift heights, displacements and final poses. Each
+is defined in the module doc of :mod:`projection_server.timeline.translate`, the one list
+of them all.
 """
 
 from __future__ import annotations
@@ -51,6 +52,11 @@ def _upside_down(sample: Sample, body: str, references: list[str]) -> bool:
     return turning.is_upside_down(normal)
 
 
+def _overlaps(intervals: list[Interval], start: float, end: float) -> bool:
+    """Whether one of ``intervals`` meets the closed interval from ``start`` to ``end``."""
+    return any(s <= end and start <= e for s, e in intervals)
+
+
 class Rules:
     """Fluents, events and quantities of a list of samples."""
 
@@ -60,12 +66,17 @@ class Rules:
         self.times = [x.t for x in samples]
         self.end = self.times[-1] if self.times else 0.0
         self.grippers = sorted({g for x in samples for g in x.grippers})
-        # Moving bodies: logged on /tf (static ones are on /tf_static), without link frames.
-        self.bodies = sorted({name for x in samples for name in x.moving} - set(self.grippers))
+        self.robots = sorted({r for x in samples for r in x.robots} | set(self.grippers))
+        # Moving bodies: logged on /tf (static ones are on /tf_static), without link frames,
+        # and not robots.
+        self.bodies = sorted({name for x in samples for name in x.moving} - set(self.robots))
         falses = functools.partial(list, [False] * len(samples))
         self._booleans: dict[tuple[str, tuple[str, ...]], list[bool]] = defaultdict(falses)
-        # Per sample, unmerged: whether a body touches anything (drops).
+        # Per sample, unmerged: whether a body touches anything (drops); whether a robot's
+        # links but its base touch an object, and whether its gripper holds it (collisions).
         self._touching: dict[str, list[bool]] = defaultdict(falses)
+        self._robot_touching: dict[tuple[str, str], list[bool]] = defaultdict(falses)
+        self._held: dict[tuple[str, str], list[bool]] = defaultdict(falses)
         self._sample_fluents()
         self._intervals = {key: fluent_intervals(self.times, values, self.settings.gap_merge)
                            for key, values in self._booleans.items()}
@@ -80,6 +91,7 @@ class Rules:
         supports: list[tuple[str, tuple[str, ...]]] = []   # the supported_by keys
         references = {body: [f'{body}/{link}' for link in REFERENCE_LINKS]
                       for body in self.bodies}
+        robots = set(self.robots)
         for i, sample in enumerate(self.samples):
             touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
             held: set[str] = set()
@@ -90,6 +102,9 @@ class Rules:
                 touching[body_a].add((body_b, link_b))
                 touching[body_b].add((body_a, link_a))
                 self._touching[body_a][i] = self._touching[body_b][i] = True
+                for robot, link, obj in ((body_a, link_a, body_b), (body_b, link_b, body_a)):
+                    if robot in robots and link:   # the base ('') may rest on its mount
+                        self._robot_touching[(robot, obj)][i] = True
                 for obj, support, up in ((body_a, body_b, normal_z),
                                          (body_b, body_a, -normal_z)):
                     if support not in self.grippers and up >= cos_support:
@@ -103,6 +118,7 @@ class Rules:
                     if fingers and fingers <= links:
                         held.add(obj)
                         self._booleans[('in_gripper', (obj,))][i] = True
+                        self._held[(name, obj)][i] = True
             for key in supports:
                 if booleans[key][i] and key[1][0] not in held:
                     booleans[('on', key[1])][i] = True
@@ -166,6 +182,7 @@ class Rules:
                     events.append(['flip', [obj], start, start])
         events.extend(self._drops())
         events.extend(self._tips())
+        events.extend(self._collisions())
         return sorted_events(events)
 
     def _grip(self, obj: str, start: float, end: float) -> list[list[Any]]:
@@ -247,6 +264,31 @@ class Rules:
                 elif float(up @ pose[1][:, 2]) < limit:
                     events.append(['tipped_over', [obj], sample.t, sample.t])
                     break
+        return events
+
+    def _collisions(self) -> list[list[Any]]:
+        """Robot R's links but its base touch O, while O is neither in R's gripper nor
+        the target of R's task. Without R's task states, a contact during which O is in
+        R's gripper at some time is the approach (or release) of a grasp, not a collision."""
+        events = []
+        gap = self.settings.gap_merge
+        informed = {robot for sample in self.samples for robot in sample.tasks}
+        for (robot, obj), touching in sorted(self._robot_touching.items()):
+            if obj == robot:
+                continue
+            held = fluent_intervals(self.times, self._held[(robot, obj)], gap)
+            colliding = []
+            for touch, sample in zip(touching, self.samples):
+                task = sample.tasks.get(robot)
+                colliding.append(touch and not holds_at(held, sample.t)
+                                 and not (task is not None and task.target == obj))
+            contacts = fluent_intervals(self.times, touching, gap)
+            for start, end in fluent_intervals(self.times, colliding, gap):
+                if robot not in informed and any(
+                        c_start <= start <= c_end and _overlaps(held, c_start, c_end)
+                        for c_start, c_end in contacts):
+                    continue   # the approach or release of a grasp
+                events.append(['collision', [robot, obj], start, end])
         return events
 
     # --- quantities ---------------------------------------------------------------------

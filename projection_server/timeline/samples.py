@@ -2,10 +2,11 @@
 
 :class:`Samples` collects the :class:`~projection_server.bags.Record` s one at a time and
 gives one :class:`Sample` per monitoring step: the world poses of its frames
-(:class:`Poses`), the moving bodies, the contacts, the grippers' and object models' states
-and the particles' positions. The samples' poses are composed for all samples whose tf
-message has the same frames at once (the same numbers as one sample at a time). What the
-later stages read off the samples is listed in :mod:`projection_server.timeline.translate`.
+(:class:`Poses`), the moving bodies and robots, the contacts, the grippers', object models'
+and tasks' states and the particles' positions. The samples' poses are composed for all
+samples whose tf message has the same frames at once (the same numbers as one sample at a
+time). What the later stages read off the samples is listed in
+:mod:`projection_server.timeline.translate`.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ if TYPE_CHECKING:
     from collections.abc import Iterable, Iterator
     import os
 
-__all__ = ['Gripper', 'ObjectState', 'Poses', 'Sample', 'Samples']
+__all__ = ['Gripper', 'ObjectState', 'Poses', 'Sample', 'Samples', 'TaskState']
 
 
 class Gripper(NamedTuple):
@@ -42,17 +43,30 @@ class ObjectState(NamedTuple):
     broken: bool
 
 
+class TaskState(NamedTuple):
+    """A robot's task in one sample: the plan step under way (-1: not a plan), its action
+    (or the program's phase) and its target entity (``''``: none)."""
+
+    step: int
+    action: str
+    target: str
+
+
 @dataclass(slots=True)
 class Sample:
-    """What one monitoring step logged."""
+    """What one monitoring step logged. ``robots`` are the driven bodies: those whose link
+    frames are logged under their own frame (the monitor's chain of a robot's links), or
+    that have a gripper or a task state."""
 
     t: float
     poses: Poses = field(default_factory=lambda: Poses())
     moving: set[str] = field(default_factory=set)
+    robots: set[str] = field(default_factory=set)
     # (body_a, link_a, body_b, link_b, normal force, normal z)
     contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
     grippers: dict[str, Gripper] = field(default_factory=dict)
     objects: dict[str, ObjectState] = field(default_factory=dict)
+    tasks: dict[str, TaskState] = field(default_factory=dict)   # robot -> its task's state
     particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
 
 
@@ -82,13 +96,20 @@ class Samples:
         if kind == 'tf':
             sample.poses.add(data)
             sample.moving.update(child for _, child, _, _ in data if '/' not in child)
+            sample.robots.update(parent.split('/')[0] for parent, child, _, _ in data
+                                 if '/' in child and parent != 'world')
         elif kind == 'contacts':
             sample.contacts = data
         elif kind == 'gripper':
             name, command, finger_links = data
             sample.grippers[name] = Gripper(command, finger_links)
+            sample.robots.add(name)
         elif kind == 'objects':
             sample.objects = {name: ObjectState(*state) for name, *state in data}
+        elif kind == 'task':
+            robot, *state = data
+            sample.tasks[robot] = TaskState(*state)
+            sample.robots.add(robot)
 
     def finish(self, bag: str | os.PathLike[str]) -> tuple[Any, list[Sample]]:
         """The projection's info and its samples in time order, each with the static

@@ -4,17 +4,18 @@
 from what the monitor logged (:class:`~projection_server.bags.Record` s, the worker's own
 or read back from a bag: :func:`projection_server.workers.run.translate_bag`) and the
 projection's checked scenario. Every monitoring sample
-(one ``ContactArray``, ``/tf``, ``GripperState`` and ``ObjectStateArray`` per step) gives a
-truth value of each fluent; fluents hold on maximal intervals of true samples, with gaps
-shorter than ``timeline.gap_merge`` merged; events are read off those intervals. The
-thresholds are the ``timeline`` settings recorded in the bag itself, all in physical units
-(see ``config/physics.yaml``; a setting a bag predates has the settings file's value). A
-sample's contacts are those of every physics step since the previous sample. Bodies are the
-moving bodies (on ``/tf``) but grippers and particle fluids; link frames (``body/link``) are
-not bodies. The translation has three stages: :mod:`~projection_server.timeline.samples`
-makes the samples of the records, :mod:`~projection_server.timeline.rules` reads the
-fluents, events and quantities of bodies off them, and
-:mod:`~projection_server.timeline.fluids` those of particle fluids.
+(one ``ContactArray``, ``/tf``, ``GripperState``, ``ObjectStateArray`` and ``TaskState`` per
+step) gives a truth value of each fluent; fluents hold on maximal intervals of true samples,
+with gaps shorter than ``timeline.gap_merge`` merged; events are read off those intervals.
+The thresholds are the ``timeline`` settings recorded in the bag itself, all in physical
+units (see ``config/physics.yaml``; a setting a bag predates has the settings file's value).
+A sample's contacts are those of every physics step since the previous sample. Robots are
+the driven bodies (their links are logged as a chain under them); a robot's contacts name
+its links, its base link by ``''``. Bodies are the moving bodies (on ``/tf``) but robots and
+particle fluids; link frames (``body/link``) are not bodies. The translation has three
+stages: :mod:`~projection_server.timeline.samples` makes the samples of the records,
+:mod:`~projection_server.timeline.rules` reads the fluents, events and quantities of bodies
+off them, and :mod:`~projection_server.timeline.fluids` those of particle fluids.
 
 Fluents (arguments are entity names):
 
@@ -58,6 +59,12 @@ Events (``[name, args, start, end]``, points have start = end):
   sample, for a body O; a point at the first sample where it is, once per projection (what
   is asked is whether O tipped over; ``upside_down`` and ``final_pose`` say how it ended).
   A tool a program turns (the poured cup, the flipped spatula) tips over too.
+* ``collision(R, O)``: robot R touches O with any link but its base (which may rest on its
+  mount), while O is not in R's gripper (``in_gripper`` of R's fingers, gaps merged) and
+  not the target of R's task (``TaskState.target`` of the sample), and O is not R: an
+  event over each maximal interval of such samples (gaps merged). Without task states of
+  R, a contact during which O is in R's gripper at some time is the approach (or release)
+  of a grasp, not a collision.
 
 * ``spill(F)``: a particle of fluid F first reaches the table (its centre within two
   particle radii of the table's top, or lower).

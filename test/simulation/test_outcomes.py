@@ -1,9 +1,10 @@
-"""Outcomes for any object: drops as free falls, tipping over, displacements and final
-poses, read off constructed monitoring samples and off projections; and bags that recorded
-older timeline settings."""
+"""Outcomes for any object: drops as free falls, tipping over, a robot's collisions,
+displacements and final poses, read off constructed monitoring samples and off projections;
+and bags that recorded older timeline settings."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -13,7 +14,7 @@ import pytest
 
 from projection_server.settings import load_settings, TimelineSettings
 from projection_server.timeline.rules import Rules
-from projection_server.timeline.samples import Gripper, Poses, Sample
+from projection_server.timeline.samples import Gripper, Poses, Sample, TaskState
 
 RATE, PER_SAMPLE = 240, 4   # physics steps per second, and per monitoring sample (60 Hz)
 G = 9.81
@@ -141,6 +142,65 @@ def test_the_up_axis_is_compared_with_the_first_samples_not_with_the_world():
     assert events(samples, 'tipped_over') == []
 
 
+# --- collision(R, O) ----------------------------------------------------------------------
+
+ROBOT = 'arm'
+FINGERS = {ROBOT: Gripper('close', ['l', 'r'])}
+
+
+def robot_sample(k, contacts, target=None):
+    """Sample ``k`` of a robot with fingers ``l`` and ``r`` among a cup and an egg; with
+    ``target``, the robot's task state names it."""
+    tasks = {} if target is None else {ROBOT: TaskState(-1, 'grasp', target)}
+    return sample(k / 60, {'cup': [0.3, 0.0, 0.8], 'egg': [0.0, 0.0, 0.8],
+                           ROBOT: [0.0, 0.0, 1.0]}, contacts,
+                  moving=('cup', 'egg', ROBOT), grippers=FINGERS, tasks=tasks,
+                  robots={ROBOT})
+
+
+def test_a_robot_that_hits_an_object_it_does_not_mean_to_touch_collides_with_it():
+    samples = [robot_sample(k, [(ROBOT, 'palm', 'cup', '', 4.0)] if 20 <= k < 30 else [],
+                            target='egg')
+               for k in range(60)]
+    (collision,) = events(samples, 'collision')
+    assert collision == ['collision', [ROBOT, 'cup'], 20 / 60, 29 / 60]
+
+
+def test_touching_the_target_or_resting_on_the_mount_is_no_collision():
+    samples = [robot_sample(k, [(ROBOT, 'l', 'egg', '', 2.0), (ROBOT, '', 'mount', '', 50.0)],
+                            target='egg')
+               for k in range(60)]
+    assert events(samples, 'collision') == []
+
+
+def test_an_object_held_in_the_gripper_is_no_collision_though_it_is_not_the_target():
+    held = [(ROBOT, 'l', 'egg', '', 2.0), (ROBOT, 'r', 'egg', '', 2.0)]
+    samples = [robot_sample(k, held, target='cup') for k in range(60)]
+    assert events(samples, 'collision') == []
+
+
+def approach(k):
+    """A grasp of the egg: the left finger touches it from sample 10, both from 20."""
+    return ([(ROBOT, 'l', 'egg', '', 1.0)] if k >= 10 else []) + \
+        ([(ROBOT, 'r', 'egg', '', 1.0)] if k >= 20 else [])
+
+
+def test_without_task_states_the_approach_of_a_grasp_is_no_collision():
+    assert events([robot_sample(k, approach(k)) for k in range(60)], 'collision') == []
+
+
+def test_with_task_states_the_approach_of_another_object_than_the_target_is_a_collision():
+    samples = [robot_sample(k, approach(k), target='cup') for k in range(60)]
+    (collision,) = events(samples, 'collision')
+    assert collision == ['collision', [ROBOT, 'egg'], 10 / 60, 19 / 60]
+
+
+def test_without_task_states_a_contact_that_never_becomes_a_grasp_is_a_collision():
+    samples = [robot_sample(k, [(ROBOT, 'l', 'cup', '', 1.0)] if k >= 40 else [])
+               for k in range(60)]
+    assert [e[1] for e in events(samples, 'collision')] == [[ROBOT, 'cup']]
+
+
 # --- displacement(O) and final_pose(O) ----------------------------------------------------
 
 def test_every_body_has_its_displacement_and_final_pose():
@@ -203,6 +263,21 @@ def project(scenario, tmp_path, **params):
                               tmp_path / 'grasp')
     assert translate_bag(tmp_path / 'grasp') == timeline
     return timeline
+
+
+def test_a_gripper_that_runs_into_a_second_egg_collides_with_it_not_with_its_target(
+        make_scenario, tmp_path):
+    scenario = make_scenario()
+    other = copy.deepcopy(scenario['entities'][-1])
+    other['name'], other['pose']['xyz'] = 'egg2', [0.0, 0.05, 0.742]   # in a finger's way
+    scenario['entities'].append(other)
+    timeline = project(scenario, tmp_path, force=5.0)
+    collisions = [e for e in timeline['events'] if e[0] == 'collision']
+    assert collisions and all(e[1] == ['pr2_robot', 'egg2'] for e in collisions)
+    assert collisions[0][2] < 0.8   # while the gripper approaches (grasp_object.APPROACHED)
+    moved = {q[1][0]: q[2] for q in timeline['quantities'] if q[0] == 'displacement'}
+    assert moved['egg2'] > 0.05 and moved['egg1'] == pytest.approx(0.1, abs=0.005)
+    assert 'lift' in [e[0] for e in timeline['events']]
 
 
 @pytest.mark.parametrize('breaking_force', [10.0, 3.0])
