@@ -295,3 +295,30 @@ def test_an_egg_that_slips_out_of_a_weak_grip_drops_and_what_it_lands_in_holds_a
     assert drop[1] == ['egg1']
     after = {f[0] for f in timeline['fluents'] if f[1][0] == 'egg1' and f[2] > drop[3]}
     assert 'on' in after and ('broken' in after) == (breaking_force < 5.0)
+
+
+def test_the_records_of_a_bag_made_with_the_old_drop_setting_translate(make_scenario,
+                                                                        tmp_path):
+    from projection_server.bags import Record
+    from projection_server.simulation import Job
+    from projection_server.simulation.runner import Simulator
+    from projection_server.timeline import translate_records
+
+    simulator = Simulator()
+    try:
+        job = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0})
+        projection = simulator.run(job, load_settings(), tmp_path / 'grasp')
+    finally:
+        simulator.close()
+    records = projection.monitor.records
+    info = records[0].data
+    settings = json.loads(info.settings_json)
+    old = {**settings, 'timeline': {key: value for key, value in settings['timeline'].items()
+                                    if key not in ('drop_min_fall', 'tip_angle')}}
+    old['timeline']['drop_min_duration'] = 0.05
+    older = [Record('info', 0, dataclasses.replace(info, settings_json=json.dumps(old))),
+             *records[1:]]
+    now = translate_records(records, tmp_path / 'grasp', projection.scenario)
+    then = translate_records(older, tmp_path / 'grasp', projection.scenario)
+    assert then['events'] == now['events'] and then['quantities'] == now['quantities']
+    assert then['meta']['timeline_settings'] == now['meta']['timeline_settings']
