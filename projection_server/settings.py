@@ -71,15 +71,31 @@ class ControlSettings:
 
 @dataclass(frozen=True)
 class TimelineSettings:
-    """Thresholds of the translation of bags into timelines (see ``config/physics.yaml``)."""
+    """Thresholds of the translation of bags into timelines, in physical units (see
+    ``config/physics.yaml``)."""
 
-    gap_merge: float
-    contact_force_min: float
-    support_max_angle: float
-    slip_distance: float
-    slip_angle: float
-    grasp_settle: float
-    drop_min_duration: float
+    gap_merge: float            # s
+    contact_force_min: float    # N
+    support_max_angle: float    # rad
+    slip_distance: float        # m
+    slip_angle: float           # rad
+    grasp_settle: float         # s
+    drop_min_fall: float        # m
+    tip_angle: float            # rad
+
+    @classmethod
+    def recorded(cls, data: Mapping[str, Any], current: TimelineSettings | None = None
+                 ) -> TimelineSettings:
+        """The settings a bag recorded (``data``, its ``settings_json['timeline']``). A bag
+        made before a setting existed is read with ``current``'s value of it (default: the
+        settings file's); settings no longer used are ignored (``drop_min_duration`` [s] of
+        bags made before a drop was a fall of ``drop_min_fall`` [m])."""
+        names = [f.name for f in fields(cls)]
+        values = {name: data[name] for name in names if name in data}
+        if len(values) < len(names):
+            current = current if current is not None else load_settings().timeline
+            values = {name: values.get(name, getattr(current, name)) for name in names}
+        return cls(**{name: float(value) for name, value in values.items()})
 
 
 @dataclass(frozen=True)

@@ -25,11 +25,19 @@ Topics (:data:`TOPICS`):
 ``/projection/contacts``  ``ContactArray``, every monitoring step
 ``/projection/gripper``   ``GripperState``, every monitoring step, one per gripper
 ``/projection/objects``   ``ObjectStateArray``, every monitoring step (loads, broken flags)
+``/projection/task``      ``TaskState``, every monitoring step, one per robot, of tasks that
+                          report their state: the plan step (or program phase) under way
+                          and its target
+``/robot_description``    ``std_msgs/String``, once at t = 0: the URDF of the first robot
+                          whose model has one, its links renamed to their ``/tf`` frames
+                          (the root link is the robot's frame, link L is ``<robot>/L``); every
+                          other robot R's on ``/R/robot_description``
 ========================  ===================================================================
 
 Each topic records the QoS its publisher would offer (:func:`offered_qos`), as rosbag2
-does, so that ``ros2 bag play`` republishes ``/tf_static`` transient-local (a late RViz
-still gets the static frames) and everything reliable.
+does, so that ``ros2 bag play`` republishes ``/tf_static`` and the robot descriptions
+transient-local (a late RViz still gets the static frames and draws the robot) and
+everything reliable.
 
 Messages written every monitoring step have a layout that does not change from one sample
 to the next (the same frames, the same contact pairs, the same particles): a
@@ -43,9 +51,10 @@ from __future__ import annotations
 
 from projection_server.bags.cdr import CdrTemplate
 from projection_server.bags.reader import read_bag, read_records, records_of
-from projection_server.bags.schema import (INTERFACE_PACKAGE, LATCHED, message_definitions,
-                                           offered_qos, PARTICLES_NS, Record,
-                                           REFERENCE_LINKS, TOPICS, typestore)
+from projection_server.bags.schema import (INTERFACE_PACKAGE, is_latched, LATCHED,
+                                           message_definitions, offered_qos, PARTICLES_NS,
+                                           Record, REFERENCE_LINKS, robot_description_topic,
+                                           TOPICS, typestore)
 from projection_server.bags.writer import BagWriter
 
 __all__ = [
@@ -57,10 +66,12 @@ __all__ = [
     'REFERENCE_LINKS',
     'Record',
     'TOPICS',
+    'is_latched',
     'message_definitions',
     'offered_qos',
     'read_bag',
     'read_records',
     'records_of',
+    'robot_description_topic',
     'typestore',
 ]

@@ -40,10 +40,9 @@ def read_bag(path: str | os.PathLike[str],
 
 # The topics a projection's records are read from, and the record kind of each (the
 # markers topic gives only its particles).
-_RECORD_TOPICS = [TOPICS[name] for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
-                                            'objects', 'markers')]
 _KINDS = {TOPICS[name]: name for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
-                                          'objects')}
+                                          'objects', 'task')}
+_RECORD_TOPICS = [*_KINDS, TOPICS['markers']]
 
 
 def read_records(path: str | os.PathLike[str]) -> Iterator[Record]:
@@ -75,6 +74,8 @@ def records_of(messages: Iterable[tuple[str, int, Any]]) -> Iterator[Record]:
         elif kind == 'objects':
             yield Record(kind, t_ns, [(o.name, o.load, o.load_limit, o.broken)
                                       for o in msg.objects])
+        elif kind == 'task':
+            yield Record(kind, t_ns, (msg.robot, msg.step, msg.action, msg.target))
         elif kind == 'info':
             yield Record(kind, t_ns, msg)
         elif topic == TOPICS['markers']:   # only the particles

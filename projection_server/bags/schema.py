@@ -24,8 +24,10 @@ __all__ = [
     'REFERENCE_LINKS',
     'Record',
     'TOPICS',
+    'is_latched',
     'message_definitions',
     'offered_qos',
+    'robot_description_topic',
     'typestore',
 ]
 
@@ -38,10 +40,25 @@ TOPICS = {
     'contacts': '/projection/contacts',
     'gripper': '/projection/gripper',
     'objects': '/projection/objects',
+    'task': '/projection/task',
     'clock': '/clock',
+    'robot_description': '/robot_description',
 }
-# Published once and latched: late subscribers must still get it.
-LATCHED = frozenset({TOPICS['tf_static'], TOPICS['info']})
+# Published once and latched: late subscribers must still get it. A scenario's first robot
+# describes itself on /robot_description, every other robot R on /R/robot_description
+# (robot_description_topic).
+LATCHED = frozenset({TOPICS['tf_static'], TOPICS['info'], TOPICS['robot_description']})
+
+
+def robot_description_topic(robot: str, index: int) -> str:
+    """The topic of the URDF of the ``index``-th robot (from 0), named ``robot``."""
+    return TOPICS['robot_description'] if index == 0 else f'/{robot}/robot_description'
+
+
+def is_latched(topic: str) -> bool:
+    """Whether ``topic`` is published once and latched (:data:`LATCHED`, and every
+    robot's description)."""
+    return topic in LATCHED or topic.endswith(TOPICS['robot_description'])
 
 
 def offered_qos(topic: str) -> Any:
@@ -52,7 +69,7 @@ def offered_qos(topic: str) -> Any:
                                     QosReliability, QosTime)
 
     infinite = QosTime(sec=9223372036, nsec=854775807)   # RMW_DURATION_INFINITE
-    latched = topic in LATCHED
+    latched = is_latched(topic)
     return Qos(history=QosHistory.KEEP_LAST, depth=1 if latched else 100,
                reliability=QosReliability.RELIABLE,
                durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
@@ -111,6 +128,8 @@ class Record(NamedTuple):
     * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal z), ...]``;
     * ``gripper``: ``(name, command, finger links)``;
     * ``objects``: ``[(name, load, load limit, broken), ...]``;
+    * ``task``: ``(robot, step, action, target)``, one per robot (of tasks that report
+      their state);
     * ``particles``: ``{fluid: positions (n, 3)}``.
     """
 

@@ -10,24 +10,35 @@ Particle fluids' contacts are those of the sample's step.
 Particle fluids are not on ``/tf``: each monitoring step writes one ``MarkerArray`` on the
 markers topic with a ``SPHERE_LIST`` marker per fluid (namespace :data:`PARTICLES_NS`, text
 = the fluid's name, points = the particles' world positions).
+
+A task that reports its state (a method ``state() -> [(robot, step, action, target),
+...]``: the index of the plan step under way or -1, the step's or the program phase's name,
+the entity it acts on or ``''``) has it written every monitoring step, a ``TaskState`` per
+robot; a task without that method has nothing written. Each robot whose body has a URDF
+(``Body.urdf``) is described once at t = 0 on its ``robot_description`` topic, its links
+renamed to their ``/tf`` frames, so that RViz and Foxglove draw it.
 """
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
+from pathlib import Path
 from typing import Any, TYPE_CHECKING
+import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from projection_server.bags import CdrTemplate, PARTICLES_NS, Record, TOPICS, typestore
+from projection_server.bags import (CdrTemplate, PARTICLES_NS, Record,
+                                    robot_description_topic, TOPICS, typestore)
 from projection_server.simulation.physics import ContactSample, Shape
 
 if TYPE_CHECKING:
     from projection_server.bags import BagWriter
     from projection_server.simulation.physics import Body, Physics
 
-__all__ = ['ContactAggregator', 'Monitor', 'WORLD_FRAME']
+__all__ = ['ContactAggregator', 'Monitor', 'WORLD_FRAME', 'robot_description']
 
 WORLD_FRAME = 'world'
 _MSG = 'projection_interfaces/msg/'
@@ -41,9 +52,11 @@ class Monitor:
     CdrTemplate` s of their layout (kept per process), from the numbers of the sample.
     """
 
-    def __init__(self, physics: Physics, bag: BagWriter):
+    def __init__(self, physics: Physics, bag: BagWriter, task: Any = None):
+        """``task``: the projection's task; its ``state()``, if it has one, is logged."""
         self.physics = physics
         self.bag = bag
+        self._task_state = getattr(task, 'state', None)
         self.records: list[Record] = []
         self.contacts = ContactAggregator(physics)
         physics.step_hooks.append(self.contacts.add_step)
@@ -74,6 +87,10 @@ class Monitor:
         bag.write(TOPICS['tf_static'], bag.new('tf2_msgs/msg/TFMessage', transforms=[
             _transform(0, *frame) for frame in static]), 0)
         self.records.append(Record('tf_static', 0, static))
+        robots = [b for b in self.physics.bodies.values() if b.driven and b.urdf is not None]
+        for index, body in enumerate(robots):
+            bag.write(robot_description_topic(body.name, index), bag.new(
+                'std_msgs/msg/String', data=robot_description(body.name, body.urdf)), 0)
         self._markers(0)
         if self.physics.fluids:
             self.bag.write_sample(0, [self._particles(0, 0, 0)])
@@ -128,6 +145,12 @@ class Monitor:
         messages.append((TOPICS['objects'], _MSG + 'ObjectStateArray',
                          self._objects[1](values)))
         records.append(Record('objects', t, states))
+        if self._task_state is not None:
+            for robot, step, action, target in self._task_state():
+                state = (str(robot), int(step), str(action), str(target))
+                messages.append((TOPICS['task'], _MSG + 'TaskState',
+                                 _task_template(state).pack((sec, nanosec))))
+                records.append(Record('task', t, state))
         self.bag.write_sample(t, messages)
 
     # --- the sample's parts -------------------------------------------------------------
@@ -260,6 +283,15 @@ def _objects_template(names: tuple[str, ...]) -> CdrTemplate:
     return _template(_MSG + 'ObjectStateArray', _new(
         _MSG + 'ObjectStateArray', header=_header(0), objects=states),
         ('header.stamp.*', 'objects.*'))
+
+
+@functools.lru_cache(maxsize=256)
+def _task_template(state: tuple[str, int, str, str]) -> CdrTemplate:
+    """A ``TaskState`` of ``(robot, step, action, target)``: a task has a few states."""
+    robot, step, action, target = state
+    return _template(_MSG + 'TaskState', _new(
+        _MSG + 'TaskState', header=_header(0), robot=robot, step=step, action=action,
+        target=target), ('header.stamp.*',))
 
 
 @functools.lru_cache(maxsize=64)
@@ -480,6 +512,35 @@ def _link_frame(body: Body, link: int) -> str:
 def _link_parents(physics: Physics, body: Body) -> dict[int, int]:
     """Link index -> index of its parent link (-1: the base), from the loaded URDF."""
     return {link: physics.client.getJointInfo(body.body_id, link)[16] for link in body.links}
+
+
+@functools.lru_cache(maxsize=16)
+def robot_description(robot: str, urdf: str) -> str:
+    """The URDF at path ``urdf`` of robot ``robot``, its links named as their ``/tf``
+    frames: the root link ``robot``, every other link L ``robot/L``. A link without visuals
+    shows its collision shapes (what the simulation has of it); relative mesh files become
+    absolute ``file://`` URIs."""
+    path = Path(urdf)
+    root = ET.parse(path).getroot()
+    children = {child.get('link') for child in root.iter('child')}
+    links = [link.get('name') for link in root.findall('link')]
+    frames = {name: robot if name not in children else f'{robot}/{name}' for name in links}
+    for link in root.findall('link'):
+        link.set('name', frames[link.get('name')])
+        if link.find('visual') is None:
+            for collision in link.findall('collision'):
+                visual = ET.SubElement(link, 'visual')
+                visual.extend(copy.deepcopy(element) for element in collision)
+    for joint in root.findall('joint'):
+        for end in ('parent', 'child'):
+            element = joint.find(end)
+            if element is not None and element.get('link') in frames:
+                element.set('link', frames[element.get('link')])
+    for mesh in root.iter('mesh'):
+        filename = mesh.get('filename', '')
+        if filename and '://' not in filename:
+            mesh.set('filename', (path.parent / filename).resolve().as_uri())
+    return ET.tostring(root, encoding='unicode')
 
 
 def _relative(physics: Physics, parent: Any, child: Any) -> tuple[Any, Any]:

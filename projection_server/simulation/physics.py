@@ -69,7 +69,7 @@ class Body:
     # A robot's: moved by its actuators, not by the world (it is not settled; its links
     # are logged as a chain under their parents).
     driven: bool = False
-    urdf: str | None = None   # the model file a robot was loaded from
+    urdf: str | None = None   # the path of the URDF it was loaded from (a robot's is logged)
 
 
 @dataclass(frozen=True)

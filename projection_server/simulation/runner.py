@@ -76,7 +76,7 @@ class Projection:
         self.task = program.create(physics, scenario, dict(job.params),
                                    np.random.default_rng(int(info['job_key'][:16], 16)),
                                    **extra)
-        self.monitor = Monitor(physics, bag)
+        self.monitor = Monitor(physics, bag, self.task)
         self.monitor.start(info)
 
     def advance(self, until: int | None = None) -> None:

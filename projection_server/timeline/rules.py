@@ -1,12 +1,14 @@
 """The stage of a timeline that reads the fluents, events and quantities of bodies off the
 monitoring samples (:class:`Rules`): contacts, support, grasps, breaks and flips, drops,
-loads and lift heights. Each is defined in the module doc of
-:mod:`projection_server.timeline.translate`, the one list of them all.
+tipping over, robots' collisions, loads, lift heights, displacements and final poses. Each
+is defined in the module doc of :mod:`projection_server.timeline.translate`, the one list
+of them all.
 """
 
 from __future__ import annotations
 
 from collections import defaultdict
+import functools
 import math
 from typing import Any, TYPE_CHECKING
 
@@ -14,7 +16,8 @@ import numpy as np
 
 from projection_server.bags.schema import REFERENCE_LINKS
 from projection_server.timeline import turning
-from projection_server.timeline.intervals import fluent_intervals, holds_at
+from projection_server.timeline.intervals import (fluent_intervals, holds_at,
+                                                  intervals_from_samples)
 
 if TYPE_CHECKING:
     from projection_server.settings import TimelineSettings
@@ -49,6 +52,11 @@ def _upside_down(sample: Sample, body: str, references: list[str]) -> bool:
     return turning.is_upside_down(normal)
 
 
+def _overlaps(intervals: list[Interval], start: float, end: float) -> bool:
+    """Whether one of ``intervals`` meets the closed interval from ``start`` to ``end``."""
+    return any(s <= end and start <= e for s, e in intervals)
+
+
 class Rules:
     """Fluents, events and quantities of a list of samples."""
 
@@ -58,10 +66,17 @@ class Rules:
         self.times = [x.t for x in samples]
         self.end = self.times[-1] if self.times else 0.0
         self.grippers = sorted({g for x in samples for g in x.grippers})
-        # Moving bodies: logged on /tf (static ones are on /tf_static), without link frames.
-        self.bodies = sorted({name for x in samples for name in x.moving} - set(self.grippers))
-        self._booleans: dict[tuple[str, tuple[str, ...]], list[bool]] = defaultdict(
-            lambda: [False] * len(samples))
+        self.robots = sorted({r for x in samples for r in x.robots} | set(self.grippers))
+        # Moving bodies: logged on /tf (static ones are on /tf_static), without link frames,
+        # and not robots.
+        self.bodies = sorted({name for x in samples for name in x.moving} - set(self.robots))
+        falses = functools.partial(list, [False] * len(samples))
+        self._booleans: dict[tuple[str, tuple[str, ...]], list[bool]] = defaultdict(falses)
+        # Per sample, unmerged: whether a body touches anything (drops); whether a robot's
+        # links but its base touch an object, and whether its gripper holds it (collisions).
+        self._touching: dict[str, list[bool]] = defaultdict(falses)
+        self._robot_touching: dict[tuple[str, str], list[bool]] = defaultdict(falses)
+        self._held: dict[tuple[str, str], list[bool]] = defaultdict(falses)
         self._sample_fluents()
         self._intervals = {key: fluent_intervals(self.times, values, self.settings.gap_merge)
                            for key, values in self._booleans.items()}
@@ -76,6 +91,7 @@ class Rules:
         supports: list[tuple[str, tuple[str, ...]]] = []   # the supported_by keys
         references = {body: [f'{body}/{link}' for link in REFERENCE_LINKS]
                       for body in self.bodies}
+        robots = set(self.robots)
         for i, sample in enumerate(self.samples):
             touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
             held: set[str] = set()
@@ -85,6 +101,10 @@ class Rules:
                 self._booleans[('contact', tuple(sorted((body_a, body_b))))][i] = True
                 touching[body_a].add((body_b, link_b))
                 touching[body_b].add((body_a, link_a))
+                self._touching[body_a][i] = self._touching[body_b][i] = True
+                for robot, link, obj in ((body_a, link_a, body_b), (body_b, link_b, body_a)):
+                    if robot in robots and link:   # the base ('') may rest on its mount
+                        self._robot_touching[(robot, obj)][i] = True
                 for obj, support, up in ((body_a, body_b, normal_z),
                                          (body_b, body_a, -normal_z)):
                     if support not in self.grippers and up >= cos_support:
@@ -98,6 +118,7 @@ class Rules:
                     if fingers and fingers <= links:
                         held.add(obj)
                         self._booleans[('in_gripper', (obj,))][i] = True
+                        self._held[(name, obj)][i] = True
             for key in supports:
                 if booleans[key][i] and key[1][0] not in held:
                     booleans[('on', key[1])][i] = True
@@ -160,6 +181,8 @@ class Rules:
                 elif name == 'upside_down':
                     events.append(['flip', [obj], start, start])
         events.extend(self._drops())
+        events.extend(self._tips())
+        events.extend(self._collisions())
         return sorted_events(events)
 
     def _grip(self, obj: str, start: float, end: float) -> list[list[Any]]:
@@ -205,16 +228,67 @@ class Rules:
         return [shift] if shift is not None else []
 
     def _drops(self) -> list[list[Any]]:
+        """Free falls: a run of samples in which O touches nothing (a sample's contacts are
+        those of every physics step since the previous one), during which O sinks at least
+        ``drop_min_fall`` below where it last touched something. That contact was within the
+        period of the sample before the run: its height is the higher of that period's
+        ends. The lowest height counts the sample it lands in."""
         events = []
+        indices = range(len(self.samples))
         for obj in self.bodies:
-            contacts = [iv for (name, args), ivs in self._intervals.items()
-                        if name == 'contact' and obj in args for iv in ivs]
-            free = [not holds_at(contacts, t) for t in self.times]
-            for start, end in fluent_intervals(self.times, free, 0.0):
-                if end - start < self.settings.drop_min_duration:
+            heights = [self._height_at(obj, sample) for sample in self.samples]
+            touching = self._touching[obj]
+            for i, j in intervals_from_samples(indices, [not x for x in touching]):
+                before = [h for h in heights[max(0, i - 2):i] or heights[:1]
+                          if not math.isnan(h)]
+                # The lowest height until it lands, in the sample it lands in, if any.
+                fallen = [h for h in heights[i:j + 2] if not math.isnan(h)]
+                if before and fallen and \
+                        max(before) - min(fallen) >= self.settings.drop_min_fall:
+                    events.append(['drop', [obj], self.times[i], self.times[j]])
+        return events
+
+    def _tips(self) -> list[list[Any]]:
+        """The first sample at which a body's z axis is more than ``tip_angle`` from its
+        z axis at its first sample (once per body)."""
+        events = []
+        limit = math.cos(self.settings.tip_angle)
+        for obj in self.bodies:
+            up = None
+            for sample in self.samples:
+                pose = sample.poses.get(obj)
+                if pose is None:
                     continue
-                if self._height(obj, end) < self._height(obj, start):
-                    events.append(['drop', [obj], start, end])
+                if up is None:
+                    up = pose[1][:, 2]
+                elif float(up @ pose[1][:, 2]) < limit:
+                    events.append(['tipped_over', [obj], sample.t, sample.t])
+                    break
+        return events
+
+    def _collisions(self) -> list[list[Any]]:
+        """Robot R's links but its base touch O, while O is neither in R's gripper nor
+        the target of R's task. Without R's task states, a contact during which O is in
+        R's gripper at some time is the approach (or release) of a grasp, not a collision."""
+        events = []
+        gap = self.settings.gap_merge
+        informed = {robot for sample in self.samples for robot in sample.tasks}
+        for (robot, obj), touching in sorted(self._robot_touching.items()):
+            if obj == robot:
+                continue
+            held = fluent_intervals(self.times, self._held[(robot, obj)], gap)
+            colliding = []
+            for touch, sample in zip(touching, self.samples):
+                task = sample.tasks.get(robot)
+                colliding.append(touch and not holds_at(held, sample.t)
+                                 and not (task is not None and task.target == obj))
+            contacts = fluent_intervals(self.times, touching, gap)
+            for start, end in fluent_intervals(self.times, colliding, gap):
+                if robot not in informed and any(
+                        c_start <= start <= c_end and _overlaps(held, c_start, c_end)
+                        for c_start, c_end in contacts):
+                    continue   # the approach or release of a grasp
+                events.append(['collision', [robot, obj], start, end])
         return events
 
     # --- quantities ---------------------------------------------------------------------
@@ -231,8 +305,13 @@ class Rules:
         rows += [['max_load', [name], value] for name, value in sorted(loads.items())]
         rows += [['load_limit', [name], value] for name, value in sorted(limits.items())]
         for obj in self.bodies:
-            heights = [float(x.poses[obj][0][2]) for x in self.samples if obj in x.poses]
+            poses = [x.poses for x in self.samples if obj in x.poses]
+            heights = [float(p[obj][0][2]) for p in poses]
+            first, last = poses[0][obj][0], poses[-1][obj][0]
             rows.append(['lift_height', [obj], max(heights) - heights[0]])
+            rows.append(['displacement', [obj], float(np.linalg.norm(last - first))])
+            rows.append(['final_pose', [obj], [[float(v) for v in last],
+                                               list(poses[-1].quaternion(obj))]])
         return rows
 
     # --- helpers ------------------------------------------------------------------------
@@ -249,11 +328,10 @@ class Rules:
     def _broken_at(self, obj: str, time: float) -> bool:
         return holds_at(self.intervals('broken', obj), time)
 
-    def _height(self, obj: str, time: float) -> float:
-        for sample in self.samples:
-            if sample.t >= time and obj in sample.poses:
-                return float(sample.poses[obj][0][2])
-        return math.nan
+    @staticmethod
+    def _height_at(obj: str, sample: Sample) -> float:
+        pose = sample.poses.get(obj)
+        return float(pose[0][2]) if pose is not None else math.nan
 
     def _relative_pose(self, obj: str, sample: Sample
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

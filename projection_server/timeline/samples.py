@@ -2,16 +2,18 @@
 
 :class:`Samples` collects the :class:`~projection_server.bags.Record` s one at a time and
 gives one :class:`Sample` per monitoring step: the world poses of its frames
-(:class:`Poses`), the moving bodies, the contacts, the grippers' and object models' states
-and the particles' positions. The samples' poses are composed for all samples whose tf
-message has the same frames at once (the same numbers as one sample at a time). What the
-later stages read off the samples is listed in :mod:`projection_server.timeline.translate`.
+(:class:`Poses`), the moving bodies and robots, the contacts, the grippers', object models'
+and tasks' states and the particles' positions. The samples' poses are composed for all
+samples whose tf message has the same frames at once (the same numbers as one sample at a
+time). What the later stages read off the samples is listed in
+:mod:`projection_server.timeline.translate`.
 """
 
 from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass, field
+import math
 from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
@@ -22,7 +24,7 @@ if TYPE_CHECKING:
     from collections.abc import Iterable, Iterator
     import os
 
-__all__ = ['Gripper', 'ObjectState', 'Poses', 'Sample', 'Samples']
+__all__ = ['Gripper', 'ObjectState', 'Poses', 'Sample', 'Samples', 'TaskState']
 
 
 class Gripper(NamedTuple):
@@ -41,17 +43,30 @@ class ObjectState(NamedTuple):
     broken: bool
 
 
+class TaskState(NamedTuple):
+    """A robot's task in one sample: the plan step under way (-1: not a plan), its action
+    (or the program's phase) and its target entity (``''``: none)."""
+
+    step: int
+    action: str
+    target: str
+
+
 @dataclass(slots=True)
 class Sample:
-    """What one monitoring step logged."""
+    """What one monitoring step logged. ``robots`` are the driven bodies: those whose link
+    frames are logged under their own frame (the monitor's chain of a robot's links), or
+    that have a gripper or a task state."""
 
     t: float
     poses: Poses = field(default_factory=lambda: Poses())
     moving: set[str] = field(default_factory=set)
+    robots: set[str] = field(default_factory=set)
     # (body_a, link_a, body_b, link_b, normal force, normal z)
     contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
     grippers: dict[str, Gripper] = field(default_factory=dict)
     objects: dict[str, ObjectState] = field(default_factory=dict)
+    tasks: dict[str, TaskState] = field(default_factory=dict)   # robot -> its task's state
     particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
 
 
@@ -81,13 +96,20 @@ class Samples:
         if kind == 'tf':
             sample.poses.add(data)
             sample.moving.update(child for _, child, _, _ in data if '/' not in child)
+            sample.robots.update(parent.split('/')[0] for parent, child, _, _ in data
+                                 if '/' in child and parent != 'world')
         elif kind == 'contacts':
             sample.contacts = data
         elif kind == 'gripper':
             name, command, finger_links = data
             sample.grippers[name] = Gripper(command, finger_links)
+            sample.robots.add(name)
         elif kind == 'objects':
             sample.objects = {name: ObjectState(*state) for name, *state in data}
+        elif kind == 'task':
+            robot, *state = data
+            sample.tasks[robot] = TaskState(*state)
+            sample.robots.add(robot)
 
     def finish(self, bag: str | os.PathLike[str]) -> tuple[Any, list[Sample]]:
         """The projection's info and its samples in time order, each with the static
@@ -158,6 +180,14 @@ class Poses:
         if name not in self._frames:
             self._frames[name] = [None, None, None, pose]
 
+    def quaternion(self, name: str) -> tuple[float, float, float, float]:
+        """The world orientation ``(x, y, z, w)`` of frame ``name``: as logged for a frame
+        whose parent is the world, else of its composed rotation."""
+        entry = self._frames[name]
+        if entry[0] is None and entry[2] is not None:
+            return tuple(float(v) for v in entry[2])
+        return _quaternion(_composed(entry)[1])
+
     def items(self) -> Iterator[tuple[str, tuple[np.ndarray, np.ndarray]]]:
         """Every frame's name and pose."""
         return ((name, _composed(entry)) for name, entry in self._frames.items())
@@ -225,3 +255,15 @@ def _matrix(q: tuple[float, float, float, float]) -> np.ndarray:
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _quaternion(m: np.ndarray) -> tuple[float, float, float, float]:
+    """``(x, y, z, w)`` of rotation matrix ``m``, with w >= 0."""
+    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2,
+                      m[2, 1] - m[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2,
+                      m[0, 2] - m[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2,
+                      m[1, 0] - m[0, 1])
+    return (x, y, z, w)

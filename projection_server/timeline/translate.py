@@ -4,11 +4,16 @@
 from what the monitor logged (:class:`~projection_server.bags.Record` s, the worker's own
 or read back from a bag: :func:`projection_server.workers.run.translate_bag`) and the
 projection's checked scenario. Every monitoring sample
-(one ``ContactArray``, ``/tf``, ``GripperState`` and ``ObjectStateArray`` per step) gives a
-truth value of each fluent; fluents hold on maximal intervals of true samples, with gaps
-shorter than ``timeline.gap_merge`` merged; events are read off those intervals. The
-thresholds are the ``timeline`` settings recorded in the bag itself. The translation has
-three stages: :mod:`~projection_server.timeline.samples` makes the samples of the records,
+(one ``ContactArray``, ``/tf``, ``GripperState``, ``ObjectStateArray`` and ``TaskState`` per
+step) gives a truth value of each fluent; fluents hold on maximal intervals of true samples,
+with gaps shorter than ``timeline.gap_merge`` merged; events are read off those intervals.
+The thresholds are the ``timeline`` settings recorded in the bag itself, all in physical
+units (see ``config/physics.yaml``; a setting a bag predates has the settings file's value).
+A sample's contacts are those of every physics step since the previous sample. Robots are
+the driven bodies (their links are logged as a chain under them); a robot's contacts name
+its links, its base link by ``''``. Bodies are the moving bodies (on ``/tf``) but robots and
+particle fluids; link frames (``body/link``) are not bodies. The translation has three
+stages: :mod:`~projection_server.timeline.samples` makes the samples of the records,
 :mod:`~projection_server.timeline.rules` reads the fluents, events and quantities of bodies
 off them, and :mod:`~projection_server.timeline.fluids` those of particle fluids.
 
@@ -43,14 +48,31 @@ Events (``[name, args, start, end]``, points have start = end):
   it), and no ``slip(O)`` ends that grasp.
 * ``break(O)``: ``broken(O)`` begins.
 * ``flip(P)``: ``upside_down(P)`` begins.
-* ``drop(O)``: O touches nothing for at least ``drop_min_duration`` and falls meanwhile;
-  the event spans that time.
+* ``drop(O)``: a free fall: O touches nothing (no contact of at least
+  ``contact_force_min``) while it falls at least ``drop_min_fall`` below where it last
+  touched something (1 cm, 45 ms from rest: two or three samples at 60 Hz). The event spans
+  the samples without contact. Where it last touched is the higher of its heights at the
+  ends of the period of the last sample with contact (that contact was within it); the
+  fall's lowest point counts the sample it lands in. A body resting, sliding or carried
+  touches something in every sample, and does not drop.
+* ``tipped_over(O)``: O's z axis is more than ``tip_angle`` from its z axis at the first
+  sample, for a body O; a point at the first sample where it is, once per projection (what
+  is asked is whether O tipped over; ``upside_down`` and ``final_pose`` say how it ended).
+  A tool a program turns (the poured cup, the flipped spatula) tips over too.
+* ``collision(R, O)``: robot R touches O with any link but its base (which may rest on its
+  mount), while O is not in R's gripper (``in_gripper`` of R's fingers, gaps merged) and
+  not the target of R's task (``TaskState.target`` of the sample), and O is not R: an
+  event over each maximal interval of such samples (gaps merged). Without task states of
+  R, a contact during which O is in R's gripper at some time is the approach (or release)
+  of a grasp, not a collision.
 
 * ``spill(F)``: a particle of fluid F first reaches the table (its centre within two
   particle radii of the table's top, or lower).
 
-Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects,
-``lift_height(O)`` [m] (highest minus initial height) of every moving body. Of particle
+Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects; of every body
+O, ``lift_height(O)`` [m] (highest minus initial height), ``displacement(O)`` [m] (the
+distance from its first to its last sample's position) and ``final_pose(O)``, its world pose
+``[[X, Y, Z], [QX, QY, QZ, QW]]`` [m] at the last sample (a unit quaternion). Of particle
 fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
 ``particles_on(M)`` per pancake maker M, ``particles_in(C)`` per cup C,
 ``particles_spilled(F)`` (neither in a cup nor on a maker) per fluid F,
@@ -63,6 +85,7 @@ The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from typing import Any, TYPE_CHECKING
@@ -98,7 +121,8 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
         samples.add(*record)
     info, samples_ = samples.finish(bag)
     settings_json = json.loads(info.settings_json)
-    rules = Rules(samples_, TimelineSettings(**settings_json['timeline']))
+    settings = TimelineSettings.recorded(settings_json['timeline'])
+    rules = Rules(samples_, settings)
     fluids = Fluids(samples_, scenario)
     return {
         'fluents': rules.fluents(),
@@ -110,7 +134,7 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
             'params': json.loads(info.parameters_json), 'job_key': info.job_key,
             'code_version': info.code_version,
             'duration': samples_[-1].t if samples_ else 0.0, 'samples': len(samples_),
-            'timeline_settings': settings_json['timeline'],
+            'timeline_settings': dataclasses.asdict(settings),
         },
     }
 

@@ -30,9 +30,35 @@ def test_every_topic_records_the_qos_its_publisher_offers(grasp_bag):
     for topic, profiles in offered.items():
         assert len(profiles) == 1, topic
         assert profiles[0].reliability == QosReliability.RELIABLE, topic
-        latched = topic in ('/tf_static', '/projection/info')
+        latched = topic in ('/tf_static', '/projection/info', '/robot_description')
         assert profiles[0].durability == (QosDurability.TRANSIENT_LOCAL if latched
                                           else QosDurability.VOLATILE), topic
+
+
+def test_the_robot_description_names_its_links_as_their_tf_frames(grasp_bag):
+    import xml.etree.ElementTree as ET
+
+    ((_, t, message),) = read_bag(grasp_bag, ['/robot_description'])
+    urdf = ET.fromstring(message.data)
+    links = {link.get('name') for link in urdf.iter('link')}
+    _, _, first = next(read_bag(grasp_bag, ['/tf']))
+    frames = {tr.child_frame_id for tr in first.transforms}
+    assert t == 0 and 'pr2_robot' in links and set(FINGERS) <= links <= frames
+    for joint in urdf.iter('joint'):
+        assert {joint.find('parent').get('link'), joint.find('child').get('link')} <= links
+    # Every link the simulation has a shape of is drawn.
+    assert all(link.find('visual') is not None for link in urdf.iter('link')
+               if link.find('collision') is not None)
+
+
+def test_the_task_state_of_every_sample_names_the_grasps_phase_and_target(grasp_bag):
+    states = [(t, m.robot, m.step, m.action, m.target)
+              for _, t, m in read_bag(grasp_bag, ['/projection/task'])]
+    assert [t for t, *_ in states] == [t for _, t, _ in read_bag(grasp_bag, ['/tf'])]
+    assert {state[1:3] + state[4:] for state in states} == {('pr2_robot', -1, 'egg1')}
+    phases = [state[3] for state in states]
+    assert sorted(set(phases), key=phases.index) == ['settle', 'approach', 'close', 'squeeze',
+                                                     'lift', 'hold']
 
 
 def test_the_metadata_file_carries_the_profiles_as_rosbag2_writes_them(grasp_bag):

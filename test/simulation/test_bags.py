@@ -128,6 +128,8 @@ def _layouts():
     yield 'contacts', monitor._contacts_template(pairs)
     yield 'gripper', monitor._gripper_template('pr2_gripper', 'close', ('l_finger', 'r_f'))
     yield 'objects', monitor._objects_template(('egg1', 'egg22'))
+    yield 'task', monitor._task_template(('pr2_robot', 3, 'move_to', 'egg1'))
+    yield 'task (no plan, no target)', monitor._task_template(('pr2_robot', -1, 'wait', ''))
     yield 'particles (300)', monitor._particles_template(
         (('batter', 0.006, (0.95, 0.9, 0.6, 1.0), 300),))
     yield 'particles (2 fluids)', monitor._particles_template(
@@ -265,6 +267,7 @@ def test_a_projections_bag_holds_rosbags_bytes_and_its_timeline(tmp_path, make_s
             assert bytes(raw) == bytes(store.serialize_cdr(message, connection.msgtype))
             counts[connection.topic] = counts.get(connection.topic, 0) + 1
     assert counts['/tf'] == counts['/clock'] == counts['/projection/contacts'] > 200
+    assert counts['/projection/task'] == counts['/tf'] and counts['/robot_description'] == 1
     assert translate_bag(tmp_path / 'grasp') == timeline
     assert 'break' in [event[0] for event in timeline['events']]
 
@@ -288,3 +291,15 @@ def test_the_markers_of_a_layout_are_rosbags_bytes_of_the_message_itself():
         sec, nanosec = divmod(t, 1_000_000_000)
         assert template.pack((sec, nanosec) * (2 * len(layout))) == bytes(
             store.serialize_cdr(message, 'visualization_msgs/msg/MarkerArray'))
+
+
+def test_a_task_without_a_state_writes_no_task_states(tmp_path, make_scenario):
+    from projection_server.simulation import load_settings
+    from projection_server.simulation.job import Job
+    from projection_server.workers.run import run_projection
+
+    job = Job.checked(make_scenario(), 'wait', {'duration': 0.2})
+    run_projection(job, load_settings(), tmp_path / 'wait')
+    topics = {topic for topic, _, _ in read_bag(tmp_path / 'wait')}
+    assert '/tf' in topics and '/robot_description' in topics
+    assert '/projection/task' not in topics

@@ -31,6 +31,8 @@ CLOSING_SPEED = 0.03       # m/s of each finger
 LIFT_HEIGHT = 0.10         # m
 # Phase ends [s]: settle, approach, close, squeeze, lift, hold.
 SETTLED, APPROACHED, CLOSED, SQUEEZED, LIFTED, HELD = 0.2, 0.8, 1.5, 1.8, 2.8, 3.8
+PHASES = (('settle', SETTLED), ('approach', APPROACHED), ('close', CLOSED),
+          ('squeeze', SQUEEZED), ('lift', LIFTED), ('hold', HELD))
 
 
 def _min_jerk(t: float, start: float, end: float) -> float:
@@ -53,6 +55,7 @@ class GraspObject:
                                   f'grasp_object needs an {TARGET_CLASS} and a robot')
         self.force = params['force']
         self.gripper: Gripper = physics.grippers[robot.name]
+        self._physics, self._robot, self._target = physics, robot.name, target.name
         settle(physics)   # the egg lies at rest before the gripper is placed beside it
         position, orientation = physics.pose(target.name)
         rot = np.asarray(physics.client.getMatrixFromQuaternion(orientation)).reshape(3, 3)
@@ -69,6 +72,12 @@ class GraspObject:
         self.gripper.move(approach, lift)
         if t >= APPROACHED and self.gripper.command != 'close':
             self.gripper.close(self.force, CLOSING_SPEED)
+
+    def state(self) -> list[tuple[str, int, str, str]]:
+        """``(robot, -1, phase, egg)``: the phase under way (:data:`PHASES`)."""
+        t = self._physics.time
+        phase = next((name for name, end in PHASES if t < end), PHASES[-1][0])
+        return [(self._robot, -1, phase, self._target)]
 
 
 PROGRAM = register(Program(

@@ -50,6 +50,8 @@ class Pour:
         c = physics.client
         self._schedule(params)
         self._client, self._cup = c, physics.body(cup.name).body_id
+        robot = next(scenario.of_class('robot'), None)
+        self._robot, self._cup_name = (robot.name if robot else None), cup.name
         radius, height = cup.properties['radius'], cup.properties['height']
         start, _ = physics.pose(cup.name)
         mx, my, mz = maker.pose.xyz
@@ -127,6 +129,17 @@ class Pour:
                     and math.hypot(*c.getBaseVelocity(body)[0]) >= REST_SPEED):
                 return False
         return True
+
+    def state(self) -> list[tuple[str, int, str, str]]:
+        """``(robot, -1, phase, cup)`` of the scenario's first robot (none without one):
+        the phase under way, ``settle``, ``tilt``, ``hold``, ``tilt_back`` or ``rest``."""
+        if self._robot is None:
+            return []
+        t = self._physics.time
+        phases = (('settle', SETTLE), ('tilt', self.tilted), ('hold', self.released),
+                  ('tilt_back', self.upright))
+        phase = next((name for name, end in phases if t < end), 'rest')
+        return [(self._robot, -1, phase, self._cup_name)]
 
     def _follow(self) -> None:
         self._command(self._physics.time + self._lead)

@@ -76,6 +76,9 @@ class TurnPancake:
                                   'turn_pancake needs a spatula, a pancake and a pancake_maker')
         c = physics.client
         self._client, self._spatula = c, physics.body(spatula.name).body_id
+        robot = next(scenario.of_class('robot'), None)
+        self._physics, self._robot = physics, (robot.name if robot else None)
+        self._tool, self._object = spatula.name, pancake.name
         self.angle = params['angle']
         p = spatula.properties
         # The front edge's bottom, in the blade's frame.
@@ -121,6 +124,20 @@ class TurnPancake:
         centre, quat = self.pose(physics.time)
         self._client.changeConstraint(self._constraint, centre, quat, maxForce=HOLD_FORCE,
                                       erp=self._erp)
+
+
+    def state(self) -> list[tuple[str, int, str, str]]:
+        """``(robot, -1, phase, target)`` of the scenario's first robot (none without one):
+        ``settle`` with the spatula as target, then ``push``, ``lift``, ``flip`` and ``rest``
+        with the pancake."""
+        if self._robot is None:
+            return []
+        t = self._physics.time
+        if t < SETTLE:
+            return [(self._robot, -1, 'settle', self._tool)]
+        phases = (('push', self.pushed), ('lift', self.levelled), ('flip', self.flipped))
+        phase = next((name for name, end in phases if t < end), 'rest')
+        return [(self._robot, -1, phase, self._object)]
 
 
 def _quaternion(m: np.ndarray) -> tuple[float, float, float, float]:

@@ -85,7 +85,8 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
         for finger in joint_map['fingers']:   # the fingers' travel ends at max_opening
             c.changeDynamics(body_id, finger, jointUpperLimit=limits['max_opening'] / 2)
     body = physics.add_body(Body(entity.name, entity.cls, body_id, False, None,
-                                 links=links, link_shapes=link_shapes, driven=True))
+                                 links=links, link_shapes=link_shapes, driven=True,
+                                 urdf=str(urdf)))
     gain = min(1.0, TRACKING_RATE / physics.settings.physics.rate_hz)
     hand = Gripper(c, body.name, body_id, joint_map, pads, float(spec['gantry_force']),
                    position_gain=gain, **limits)
