@@ -18,7 +18,7 @@
 :- autoload(library(solution_sequences), [limit/2]).
 :- use_module(library(janus), [py_call/2]).
 :- meta_predicate with_query_context(+, 0).
-:- use_module(scenario, [scenario_description/2]).
+:- use_module(scenario, [scenario_description/2, scenario_entity/3]).
 :- use_module(plan, [plan_template/3]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1,
                          occurs/3]).
@@ -79,7 +79,10 @@ on that projection's timeline:
 %
 %   Project Program in Scenario for each instantiation of Params (see the
 %   module doc), binding the parameter variables and Timeline, the id of the
-%   projection's timeline.  Options is a list of
+%   projection's timeline.  Program is a registered program (the named
+%   programs, projection_program/2) or `plan(Steps)`, a plan written in the
+%   query (plan.pl), whose variables are parameters of Params with any name
+%   and any numbers as values.  Options is a list of
 %
 %     - timeout(+Seconds): the wall-clock limit of one simulation
 %       (default: projection_default_timeout/1);
@@ -97,7 +100,15 @@ on that projection's timeline:
 %   @error domain_error(projection_option, O) for an unknown option
 %   @error domain_error(physics_setting(Name, Range), Value) for a physics
 %          setting out of Range (`between(Min, Max)` or `multiple_of(N)`)
+%   @error domain_error(plan_step, Step), domain_error(plan_length(1, Max), N)
+%          for a malformed plan (plan_template/3)
+%   @error domain_error(plan_value, Values) for a plan whose grounded values
+%          are out of their ranges, resource_error(plan_duration) for one that
+%          may run longer than the interpreter's bound
+%   @error existence_error(entity, Object) for a plan moving to an object
+%          that is not in the scenario
 %   @error projection_error(Kind, Message) when a simulation fails or times out
+%          (kind `unreachable`: the robot cannot reach a pose the plan asks)
 
 make_projection(Scenario, Program, Params, Timeline) :-
     projection_default_timeout(Timeout),
@@ -168,6 +179,7 @@ simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Value
     check_unique(Choices),
     plan_of(Program0, Choices, Plan),
     scenario_description(Scenario, Description0),
+    plan_objects_exist(Plan, Scenario),
     % Made a Python dict once: every projection and prefetch of the query passes it on.
     py_call(dict(Description0), Description, [py_object(true)]),
     findall(Values, ( instantiate(Choices, Pairs),
@@ -204,6 +216,18 @@ plan_of(plan(Steps), Choices, Plan) :- !,
     maplist([choice(Var, Name, _), Name-Var]>>true, Choices, Pairs),   % (not findall: it copies)
     plan_template(Steps, Pairs, Plan).
 plan_of(_, _, @(none)).
+
+% plan_objects_exist(+Plan, +Scenario): the objects the plan moves to are
+% entities of Scenario.
+plan_objects_exist(@(none), _) :- !.
+plan_objects_exist(Plan, Scenario) :-
+    forall(( member(Step, Plan), get_dict(object, Step, Object) ),
+           (   scenario_entity(Scenario, Object, _)
+           ->  true
+           ;   format(atom(Msg), 'the plan moves to ~w, which is not in scenario ~w',
+                      [Object, Scenario]),
+               throw(error(existence_error(entity, Object), context(_, Msg)))
+           )).
 
 % check_plan(+Plan, +All): every parametrization grounds Plan to a plan the
 % interpreter runs: its values in their ranges, its simulated time bounded.
