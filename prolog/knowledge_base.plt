@@ -48,8 +48,9 @@ bad_turtle(File) :-
 
 close_to(X, Y) :- abs(X-Y) < 1.0e-9.
 
-test(entities, Es == [cup1, egg1, floor1, kitchen_env, pancake1, pancake_maker1,
-                      pancake_mix1, pr2_gripper, pr2_robot, spatula1, table1]) :-
+test(entities, Es == [cup1, egg1, floor1, glass1, kitchen_env, mug1, pancake1,
+                      pancake_maker1, pancake_mix1, pr2_gripper, pr2_robot, spatula1,
+                      table1, tray1]) :-
     findall(E, kb_entity(E), Es).
 test(prototypes_are_not_entities, fail) :-
     kb_entity(egg_prototype).
@@ -105,8 +106,19 @@ shape_keys("cylinder", [radius, height, mass, friction]).
 shape_keys("disc", [radius, thickness, mass, friction]).
 shape_keys("cup", [radius, height, wall_thickness, mass, friction]).
 shape_keys("sphere", [particle_count, particle_radius, particle_mass, friction]).
-shape_keys("urdf", [urdf, friction]).
+shape_keys("mesh", [file, mass, friction]).
+shape_keys("urdf", [friction]).
 shape_keys("none", []).
+
+test(urdf_bodies_name_their_model, Missing == []) :-
+    findall(E,
+            ( kb_entity(E),
+              kb_entity_properties(E, P),
+              get_dict(shape, P, "urdf"),
+              \+ get_dict(urdf, P, _),
+              \+ get_dict(file, P, _)
+            ),
+            Missing).
 
 test(egg_is_a_hens_egg) :-
     kb_entity_properties(egg1, P),
@@ -255,6 +267,28 @@ test(pose_short_vector, error(domain_error(list_of_length(3), [1,2]))) :-
     kb_check_pose(_{xyz: [1,2]}, _).
 test(pose_non_numbers, error(type_error(number, a))) :-
     kb_check_pose(_{rpy: [a,b,c]}, _).
+
+% Rigid objects: any shape, their model file as text (resolved by scenario.pl).
+test(class_properties_of_rigid_object,
+     Keys == [breaking_force, file, friction, height, mass, radius, restitution,
+              rolling_friction, scale, shape, size_x, size_y, size_z, spinning_friction]) :-
+    kb_class_properties(rigid_object, Keys).
+test(everyday_objects_are_rigid_objects, all(S == [rigid_object, rigid_object, rigid_object])) :-
+    member(E, [glass1, mug1, tray1]),
+    kb_entity_class(E, C),
+    kb_simulator_class(C, S).
+test(model_files_are_text_in_the_kb, F == "objects/mug.urdf") :-
+    kb_entity_properties(mug1, P),
+    F = P.file.
+test(the_glass_is_breakable_and_stands_on_the_table) :-
+    kb_entity_properties(glass1, P),
+    P.breaking_force > 0, P.mass > 0,
+    kb_entity_pose(glass1, _{xyz: [_, _, Z], rpy: _}),
+    close_to(Z, 0.72).
+test(check_file, V == "my/cup.obj") :-
+    kb_check_property(rigid_object, file, 'my/cup.obj', V).
+test(check_file_type, error(type_error(text, 3))) :-
+    kb_check_property(rigid_object, file, 3, _).
 
 test(error_message_is_readable) :-
     catch(kb_check_property(table, breaking_force, 10, _), E, true),
