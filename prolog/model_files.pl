@@ -121,7 +121,7 @@ resolved("malformed", Path0, Format, Message, _) :-
 
 prolog:message(error(permission_error(access, model_file, Path), context(_, Msg))) -->
     { string(Msg) }, !,
-    [ 'Model file ~q: ~w; a model file must be in an asset directory'-[Path, Msg] ].
+    [ 'Model file ~q: ~w'-[Path, Msg] ].
 prolog:message(error(existence_error(model_file, Path), context(_, Msg))) -->
     { string(Msg) }, !,
     [ 'Model file ~q: ~w'-[Path, Msg] ].
