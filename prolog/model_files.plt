@@ -15,19 +15,28 @@ make_assets :-
     file_in(Dir, 'cube.obj', Cube),
     write_file(Cube, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"),
     file_in(Dir, 'thing.urdf', Urdf),
-    write_file(Urdf, "<robot name=\"thing\"><link name=\"base\"><collision><geometry><mesh filename=\"cube.obj\"/></geometry></collision></link></robot>"),
+    link_with_mesh("cube.obj", Thing),
+    write_file(Urdf, Thing),
     file_in(Dir, 'holes.obj', Holes),
     write_file(Holes, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n"),
     file_in(Dir, 'nolink.urdf', NoLink),
     write_file(NoLink, "<robot name=\"x\"></robot>"),
     file_in(Dir, 'escape.urdf', Escape),
-    write_file(Escape, "<robot name=\"x\"><link name=\"a\"><visual><geometry><mesh filename=\"../secret.obj\"/></geometry></visual></link></robot>"),
+    link_with_mesh("../secret.obj", Leak),
+    write_file(Escape, Leak),
     file_in(Dir, 'notes.txt', Notes),
     write_file(Notes, "hello\n"),
     file_in(Dir, 'link.obj', Link),
     link_file(Outside, Link, symbolic),
     assertz(assets(Dir, Outside)),
     set_model_directories([Dir]).
+
+% A URDF of one link whose collision is the mesh File.
+link_with_mesh(File, Text) :-
+    format(string(Text), "~w~w~w",
+           [ "<robot name=\"thing\"><link name=\"base\"><collision><geometry><mesh filename=\"",
+             File,
+             "\"/></geometry></collision></link></robot>" ]).
 
 remove_assets :-
     forall(retract(assets(Dir, _)),
