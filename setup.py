@@ -22,6 +22,8 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     package_data={'projection_server.simulation.robots': ['assets/*.urdf', 'assets/*.yaml'],
+                  'projection_server.simulation.objects': ['assets/*.obj', 'assets/*.stl',
+                                                           'assets/*.urdf'],
                   'projection_server.workers': ['*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),

@@ -1,6 +1,7 @@
 :- module(knowledge_base,
           [ knowledge_base_load/0,
             knowledge_base_load/1,      % +File
+            knowledge_base_add/1,       % +File
             kb_entity/1,                % ?Name
             kb_entity_class/2,          % +Name, -Class
             kb_entity_properties/2,     % +Name, -Properties:dict
@@ -13,13 +14,14 @@
             kb_class_defaults/2,        % +Class, -Properties:dict
             kb_class_pose/2,            % +Class, -Pose:dict
             kb_property_unit/2,         % ?Key, ?Unit
+            kb_property_kind/2,         % +Key, -Kind
             kb_check_property/4,        % +Class, +Key, +Value0, -Value
             kb_class_properties/2,      % +Class, -Keys:list(atom)
             kb_check_pose/2             % +Pose0, -Pose:dict
           ]).
 :- use_module(library(semweb/rdf11)).
 :- use_module(library(semweb/turtle), []).     % the Turtle parser for rdf_load/2
-:- autoload(library(apply), [foldl/4, maplist/3, include/3]).
+:- autoload(library(apply), [foldl/4, maplist/3, include/3, exclude/3]).
 :- autoload(library(error),
             [ must_be/2, domain_error/2, existence_error/2, type_error/2 ]).
 :- autoload(library(lists), [member/2, reverse/2, list_to_set/2]).
@@ -39,7 +41,9 @@ its individual (`egg1`), a class by the snake_case form of its OWL class
 (`pancake_maker` for `kitchen:PancakeMaker`).  Every quantity is SI.
 
 The ontology is loaded by knowledge_base_load/0, or on first use by any
-query predicate of this module.
+query predicate of this module.  knowledge_base_add/1 adds a Turtle file of
+one's own (classes, individuals, scenarios in the same vocabulary); the node
+adds those of its parameter `kb_files` at start.
 
 ```
 ?- knowledge_base_load.
@@ -89,6 +93,33 @@ knowledge_base_load(File0) :-
     ),
     kb_graph(G),
     with_mutex(knowledge_base, load_graph(G, File)).
+
+%!  knowledge_base_add(+File) is det.
+%
+%   Add the Turtle file File to the knowledge base, beside the ontology
+%   `kb/kitchen.ttl` (loaded first if it is not): its classes, individuals
+%   and scenarios are the knowledge base's from then on.  Each file is a
+%   graph of its own (its URL), so adding it again reloads it if it
+%   changed and does nothing otherwise.
+%
+%   @error existence_error(file, File) if File does not exist.
+%   @error syntax_error(_) if File is not valid Turtle; nothing of it is
+%          then added.
+
+knowledge_base_add(File0) :-
+    must_be(atom, File0),
+    absolute_file_name(File0, File),
+    (   exists_file(File)
+    ->  true
+    ;   existence_error(file, File0)
+    ),
+    ensure_loaded_kb,
+    uri_file_name(URL, File),
+    load_options(URL, Options),
+    with_mutex(knowledge_base,
+               catch(rdf_load(File, Options),
+                     E,
+                     ( rdf_unload_graph(URL), throw(E) ))).
 
 % Whether the ontology is loaded is kept in a flag, not in a dynamic
 % predicate: the first query may come from inside a transaction/1 (see
@@ -227,11 +258,39 @@ literal_value(reference, _Key, IRI, Name) :-
     ;   type_error(entity_reference, IRI)
     ).
 literal_value(data(Range), Key, Literal, Value) :-
-    (   Literal = V^^_ -> true
-    ;   Literal = V@_ -> true
-    ;   V = Literal
+    (   Literal = V0^^_ -> true
+    ;   Literal = V0@_ -> true
+    ;   V0 = Literal
     ),
-    check_value(Range, Key, V, Value).
+    range_kind(Range, Kind),
+    lexical_value(Kind, V0, V),
+    check_value(Kind, Key, V, Value).
+
+% lexical_value(+Kind, +Lexical, -Value): a list-valued literal's text is
+% its elements separated by white space (see kb/kitchen.ttl's header).
+lexical_value(Kind, Text, List) :-
+    list_kind(Kind),
+    !,
+    (   string(Text)
+    ->  split_string(Text, " \t\n\r", " \t\n\r", Parts0),
+        exclude(==(""), Parts0, Parts),
+        (   Kind == names
+        ->  List = Parts
+        ;   maplist(lexical_number(Text), Parts, List)
+        )
+    ;   type_error(Kind, Text)
+    ).
+lexical_value(_, Value, Value).
+
+lexical_number(Text, Part, Number) :-
+    (   catch(number_string(Number, Part), _, fail)
+    ->  true
+    ;   type_error(list_of_numbers, Text)
+    ).
+
+list_kind(vector).
+list_kind(numbers).
+list_kind(names).
 
 %!  kb_entity_pose(+Name, -Pose:dict) is det.
 %
@@ -517,9 +576,13 @@ property_unit(Key, Unit) :-
 %!  kb_check_property(+Class, +Key, +Value0, -Value) is det.
 %
 %   Value is Value0 checked and normalised as a value of the physical
-%   property Key for an entity of Class: floats for quantities
-%   (non-negative), non-negative integers for counts, strings for
-%   string properties (an atom is accepted), an atom for references.
+%   property Key for an entity of Class, by its kind (kb_property_kind/2):
+%   floats for quantities (non-negative), non-negative integers for
+%   counts, strings for text and model files (an atom is accepted), a
+%   list of three floats for a vector and a list of floats for a list of
+%   numbers (of any sign), a non-empty list of strings for a list of names,
+%   an atom for references.  A model file is not resolved here (see
+%   model_files.pl).
 %
 %   @error existence_error(class, Class) if Class is not a KB class.
 %   @error domain_error(entity_property, Key) if Key is no physical
@@ -527,6 +590,9 @@ property_unit(Key, Unit) :-
 %   @error type_error(Type, Value0) if Value0 has the wrong type.
 %   @error domain_error(not_less_than_zero, Value0) for a negative
 %          quantity.
+%   @error domain_error(list_of_length(3), Value0) for a vector of
+%          another length; domain_error(non_empty_list, []) for an empty
+%          list of names.
 
 kb_check_property(Class, Key, Value0, Value) :-
     known_class(Class, ClassIRI),
@@ -545,7 +611,8 @@ kb_check_property(Class, Key, Value0, Value) :-
         throw(error(domain_error(entity_property, Key), context(_, Msg)))
     ),
     (   Kind = data(Range)
-    ->  check_value(Range, Key, Value0, Value)
+    ->  range_kind(Range, ValueKind),
+        check_value(ValueKind, Key, Value0, Value)
     ;   must_be(atom, Value0),
         Value = Value0
     ).
@@ -576,22 +643,74 @@ applies_to(P, ClassIRI) :-
     ;   true
     ).
 
-% check_value(+RangeIRI, +Key, +Value0, -Value)
-check_value(Range, _Key, V0, V) :-
-    rdf_equal(Range, xsd:double),
+%!  kb_property_kind(+Key, -Kind) is semidet.
+%
+%   Kind is what the values of the physical property Key are: `quantity`
+%   (a non-negative float, rdfs:range xsd:double), `count` (a non-negative
+%   integer, xsd:nonNegativeInteger), `text` (xsd:string), `vector` (three
+%   floats, kitchen:Vector), `numbers` (floats, kitchen:NumberList),
+%   `names` (strings, kitchen:NameList), `file` (a model file's path,
+%   kitchen:ModelFile) or `reference` (an entity's name).  Fails if Key is
+%   no physical property.
+
+kb_property_kind(Key, Kind) :-
+    must_be(atom, Key),
+    ensure_loaded_kb,
+    rdf_global_id(kitchen:Key, P),
+    property_kind(P, Kind0),
+    !,
+    (   Kind0 = data(Range)
+    ->  range_kind(Range, Kind)
+    ;   Kind = Kind0
+    ).
+
+% range_kind(+RangeIRI, -Kind)
+range_kind(Range, Kind) :-
+    range_kind_(Local, Kind0),
+    rdf_global_id(Local, Range),
+    !,
+    Kind = Kind0.
+range_kind(_, text).
+
+range_kind_(xsd:double, quantity).
+range_kind_(xsd:nonNegativeInteger, count).
+range_kind_(kitchen:'Vector', vector).
+range_kind_(kitchen:'NumberList', numbers).
+range_kind_(kitchen:'NameList', names).
+range_kind_(kitchen:'ModelFile', file).
+
+% check_value(+Kind, +Key, +Value0, -Value)
+check_value(quantity, _Key, V0, V) :-
     !,
     must_be(number, V0),
     (   V0 >= 0 -> V is float(V0) ; domain_error(not_less_than_zero, V0) ).
-check_value(Range, _Key, V0, V) :-
-    rdf_equal(Range, xsd:nonNegativeInteger),
+check_value(count, _Key, V0, V) :-
     !,
     must_be(integer, V0),
     (   V0 >= 0 -> V = V0 ; domain_error(not_less_than_zero, V0) ).
-check_value(_Range, _Key, V0, V) :-        % xsd:string
+check_value(vector, _Key, V0, V) :-
+    !,
+    must_be(list(number), V0),
+    (   V0 = [_,_,_] -> true ; domain_error(list_of_length(3), V0) ),
+    maplist(to_float, V0, V).
+check_value(numbers, _Key, V0, V) :-
+    !,
+    must_be(list(number), V0),
+    maplist(to_float, V0, V).
+check_value(names, _Key, V0, V) :-
+    !,
+    must_be(list(text), V0),
+    (   V0 == [] -> domain_error(non_empty_list, V0) ; true ),
+    maplist(name_string, V0, V).
+check_value(_Kind, _Key, V0, V) :-        % text, file
     (   ( atom(V0) ; string(V0) )
     ->  atom_string(V0, V)
     ;   type_error(text, V0)
     ).
+
+name_string(Name, String) :-
+    text_to_string(Name, String),
+    (   String == "" -> domain_error(name, Name) ; true ).
 
 %!  kb_check_pose(+Pose0, -Pose:dict) is det.
 %

@@ -48,8 +48,9 @@ bad_turtle(File) :-
 
 close_to(X, Y) :- abs(X-Y) < 1.0e-9.
 
-test(entities, Es == [cup1, egg1, floor1, kitchen_env, pancake1, pancake_maker1,
-                      pancake_mix1, pr2_gripper, pr2_robot, spatula1, table1]) :-
+test(entities, Es == [cup1, egg1, floor1, glass1, kitchen_env, mug1, pancake1,
+                      pancake_maker1, pancake_mix1, pr2_gripper, pr2_robot, spatula1,
+                      table1, tray1]) :-
     findall(E, kb_entity(E), Es).
 test(prototypes_are_not_entities, fail) :-
     kb_entity(egg_prototype).
@@ -105,8 +106,19 @@ shape_keys("cylinder", [radius, height, mass, friction]).
 shape_keys("disc", [radius, thickness, mass, friction]).
 shape_keys("cup", [radius, height, wall_thickness, mass, friction]).
 shape_keys("sphere", [particle_count, particle_radius, particle_mass, friction]).
-shape_keys("urdf", [urdf, friction]).
+shape_keys("mesh", [file, mass, friction]).
+shape_keys("urdf", [friction]).
 shape_keys("none", []).
+
+test(urdf_bodies_name_their_model, Missing == []) :-
+    findall(E,
+            ( kb_entity(E),
+              kb_entity_properties(E, P),
+              get_dict(shape, P, "urdf"),
+              \+ get_dict(urdf, P, _),
+              \+ get_dict(file, P, _)
+            ),
+            Missing).
 
 test(egg_is_a_hens_egg) :-
     kb_entity_properties(egg1, P),
@@ -256,6 +268,32 @@ test(pose_short_vector, error(domain_error(list_of_length(3), [1,2]))) :-
 test(pose_non_numbers, error(type_error(number, a))) :-
     kb_check_pose(_{rpy: [a,b,c]}, _).
 
+% Rigid objects: any shape, their model file as text (resolved by scenario.pl).
+test(class_properties_of_rigid_object,
+     Keys == [breaking_force, file, friction, height, mass, radius, restitution,
+              rolling_friction, scale, shape, size_x, size_y, size_z, spinning_friction]) :-
+    kb_class_properties(rigid_object, Keys).
+test(everyday_objects_are_rigid_objects, all(S == [rigid_object, rigid_object, rigid_object])) :-
+    member(E, [glass1, mug1, tray1]),
+    kb_entity_class(E, C),
+    kb_simulator_class(C, S).
+test(model_files_are_text_in_the_kb, F == "objects/mug.urdf") :-
+    kb_entity_properties(mug1, P),
+    F = P.file.
+test(the_glass_is_breakable_and_stands_on_the_table) :-
+    kb_entity_properties(glass1, P),
+    P.breaking_force > 0, P.mass > 0,
+    kb_entity_pose(glass1, _{xyz: [_, _, Z], rpy: _}),
+    close_to(Z, 0.72).
+test(check_file, V == "my/cup.obj") :-
+    kb_check_property(rigid_object, file, 'my/cup.obj', V).
+test(check_file_type, error(type_error(text, 3))) :-
+    kb_check_property(rigid_object, file, 3, _).
+test(property_kinds, Kinds == [quantity, count, text, file, reference]) :-
+    maplist(kb_property_kind, [mass, particle_count, shape, file, container], Kinds).
+test(property_kind_of_no_property, fail) :-
+    kb_property_kind(colour, _).
+
 test(error_message_is_readable) :-
     catch(kb_check_property(table, breaking_force, 10, _), E, true),
     message_to_codes(E, S),
@@ -266,3 +304,78 @@ message_to_codes(E, S) :-
     with_output_to(string(S), print_message_lines(current_output, '', Lines)).
 
 :- end_tests(knowledge_base).
+
+% Turtle files of one's own, and the list-valued kinds (typed literals).
+:- begin_tests(knowledge_base_files, [ setup(add_gadgets(File)),
+                                       cleanup(remove_gadgets(File)) ]).
+:- use_module(knowledge_base).
+:- use_module(library(semweb/rdf11), [rdf_unload_graph/1]).
+:- use_module(library(uri), [uri_file_name/2]).
+
+add_gadgets(File) :-
+    tmp_file_stream(text, File, S),
+    format(S, '~s', [
+"@prefix kitchen: <http://projection-server.org/ontology/kitchen#> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+kitchen:Gadget a owl:Class ; rdfs:subClassOf kitchen:PhysicalObject ;
+    kitchen:simulatorClass \"gadget\" .
+kitchen:direction a owl:DatatypeProperty ; rdfs:subPropertyOf kitchen:physicalProperty ;
+    rdfs:range kitchen:Vector ; kitchen:appliesTo kitchen:Gadget .
+kitchen:weights a owl:DatatypeProperty ; rdfs:subPropertyOf kitchen:physicalProperty ;
+    rdfs:range kitchen:NumberList ; kitchen:appliesTo kitchen:Gadget .
+kitchen:joint_names a owl:DatatypeProperty ; rdfs:subPropertyOf kitchen:physicalProperty ;
+    rdfs:range kitchen:NameList ; kitchen:appliesTo kitchen:Gadget .
+kitchen:gadget1 a kitchen:Gadget ;
+    kitchen:direction \"0 -1 0.5\"^^kitchen:Vector ;
+    kitchen:weights \" 1  -2.5 \"^^kitchen:NumberList ;
+    kitchen:joint_names \"joint_a joint_b\"^^kitchen:NameList .
+kitchen:gadget2 a kitchen:Gadget ; kitchen:direction \"0 up 1\"^^kitchen:Vector .
+"]),
+    close(S),
+    knowledge_base_add(File).
+
+remove_gadgets(File) :-
+    uri_file_name(URL, File),
+    rdf_unload_graph(URL),
+    delete_file(File).
+
+test(added_files_add_entities, true) :-
+    kb_entity(gadget1),
+    kb_entity(egg1).
+test(lists_in_turtle,
+     P =@= _{direction: [0.0, -1.0, 0.5], weights: [1.0, -2.5],
+             joint_names: ["joint_a", "joint_b"]}) :-
+    kb_entity_properties(gadget1, P).
+test(a_malformed_list_literal, error(type_error(list_of_numbers, "0 up 1"))) :-
+    kb_entity_properties(gadget2, _).
+test(list_kinds, Kinds == [vector, numbers, names]) :-
+    maplist(kb_property_kind, [direction, weights, joint_names], Kinds).
+test(check_vector, V == [1.0, -2.0, 0.5]) :-
+    kb_check_property(gadget, direction, [1, -2, 0.5], V).
+test(check_vector_length, error(domain_error(list_of_length(3), [1, 2]))) :-
+    kb_check_property(gadget, direction, [1, 2], _).
+test(check_vector_numbers, error(type_error(number, up))) :-
+    kb_check_property(gadget, direction, [0, up, 1], _).
+test(check_numbers, V == [-1.0, 0.0, 2.5, 7.0]) :-
+    kb_check_property(gadget, weights, [-1, 0, 2.5, 7], V).
+test(check_numbers_empty, V == []) :-
+    kb_check_property(gadget, weights, [], V).
+test(check_names, V == ["a", "b"]) :-
+    kb_check_property(gadget, joint_names, [a, "b"], V).
+test(check_names_empty, error(domain_error(non_empty_list, []))) :-
+    kb_check_property(gadget, joint_names, [], _).
+test(check_names_not_text, error(type_error(text, 1))) :-
+    kb_check_property(gadget, joint_names, [1], _).
+test(add_missing_file, error(existence_error(file, '/nonexistent/my.ttl'))) :-
+    knowledge_base_add('/nonexistent/my.ttl').
+test(add_bad_turtle, [ setup(bad_file(Bad)), cleanup(delete_file(Bad)),
+                       error(syntax_error(_)) ]) :-
+    knowledge_base_add(Bad).
+
+bad_file(File) :-
+    tmp_file_stream(text, File, S),
+    format(S, '@prefix k: <http://x.org/k#> .~nk:a k:b ;; .~n', []),
+    close(S).
+
+:- end_tests(knowledge_base_files).

@@ -2,10 +2,13 @@
           [ projection_server_init/1    % +Options:dict
           ]).
 :- use_module(query_service).
-:- use_module(knowledge_base, [knowledge_base_load/0]).
+:- use_module(knowledge_base, [knowledge_base_load/0, knowledge_base_add/1]).
+:- use_module(model_files, [set_model_directories/1]).
 :- use_module(scenario).
 :- use_module(timeline).
 :- use_module(projection).
+:- autoload(library(error), [must_be/2]).
+:- autoload(library(lists), [member/2]).
 
 /** <module> projection_server: the Prolog side of the ROS query service
 
@@ -22,12 +25,33 @@ module `user`:
 %!  projection_server_init(+Options:dict) is det.
 %
 %   Initialise the server's Prolog side. Called once by the node after
-%   loading, with the node's parameters.
+%   loading, with the node's parameters.  Options used (both lists of
+%   file names, default `[]`):
+%
+%     - asset_paths: directories where model files resolve, after the
+%       package's own and before `pybullet_data`'s (model_files.pl);
+%     - kb_files: Turtle files added to the knowledge base
+%       (knowledge_base_add/1).
+%
+%   @error existence_error(directory, Dir) for an asset path that is no
+%          directory; existence_error(file, File) or syntax_error(_) for a
+%          KB file that is missing or not valid Turtle.
 
-projection_server_init(_Options) :-
+projection_server_init(Options) :-
+    init_option(Options, asset_paths, AssetPaths),
+    init_option(Options, kb_files, KbFiles),
+    set_model_directories(AssetPaths),
     knowledge_base_load,
+    forall(member(KbFile, KbFiles), ( atom_string(A, KbFile), knowledge_base_add(A) )),
     forall(( api_module(M), module_property(M, file(File)) ),
            user:use_module(File)).
+
+init_option(Options, Key, Value) :-
+    (   is_dict(Options), get_dict(Key, Options, Value0)
+    ->  must_be(list(text), Value0),
+        Value = Value0
+    ;   Value = []
+    ).
 
 api_module(scenario).
 api_module(timeline).

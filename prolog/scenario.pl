@@ -22,8 +22,9 @@
               [ kb_entity/1, kb_entity_description/2, kb_scenario/2,
                 kb_class/1, kb_simulator_class/2, kb_class_defaults/2,
                 kb_class_pose/2, kb_check_property/4, kb_check_pose/2,
-                kb_class_properties/2 ]).
+                kb_class_properties/2, kb_property_kind/2 ]).
 :- use_module(object_factory, [object_type/1, object_model/3]).
+:- use_module(model_files, [model_file/2]).
 
 /** <module> Scenarios: the entities a projection runs on
 
@@ -54,6 +55,12 @@ An entity is added in one of these forms (or a list of them):
     object model factory (object_model/3), e.g. `object(pancake,
     _{radius: 0.05})`.  Without a `name` option it is named `Type_N`, the
     first N that is free in the scenario.
+
+A model file an entity names (the `file` of a `rigid_object`, a property
+of kind `file`) is resolved in the asset directories when the entity is
+added or the property set (model_files.pl): the description holds its
+absolute path, and a path outside them, a missing or a malformed file is an
+error then.
 
 Names are unique within a scenario, parts included: adding a name that is
 already there is an error (to change an entity use scenario_set_property/4,
@@ -125,6 +132,10 @@ scenario_exists(S) :-
 %   @error permission_error(create, entity, Name) if Name is already in
 %          Scenario (or twice in the list).
 %   @error type_error(entity, Entity) for a term of no entity form.
+%   @error permission_error(access, model_file, Path),
+%          existence_error(model_file, Path) or
+%          domain_error(model_file(Format), Path) for a model file outside
+%          the asset directories, missing or malformed (model_file/2).
 
 add_to_scenario(Scenario, Entity) :-
     must_be(atom, Scenario),
@@ -157,7 +168,8 @@ resolve([H|T], Used0, Used, Es0, Es) :-
     resolve(H, Used0, Used1, Es0, Es1),
     resolve(T, Used1, Used, Es1, Es).
 resolve(Spec, Used0, Used, [Entity|Es], Es) :-
-    resolve_one(Spec, Used0, Entity),
+    resolve_one(Spec, Used0, Entity0),
+    entity_files(Entity0, Entity),
     entity_names(Entity, Names),
     foldl(claim_name, Names, Used0, Used).
 
@@ -238,6 +250,28 @@ unknown_property(Name, Class, Key) :-
            [Name, Class, Accepted]),
     throw(error(domain_error(entity_property, Key), context(_, Msg))).
 
+% entity_files(+Entity0, -Entity): Entity0 with the model files it and its
+% parts name resolved (model_file/2).
+entity_files(Entity0, Entity) :-
+    dict_pairs(Entity0.properties, Tag, Pairs0),
+    (   member(Key-_, Pairs0), kb_property_kind(Key, file)
+    ->  maplist(file_pair, Pairs0, Pairs),
+        dict_pairs(Properties, Tag, Pairs),
+        Entity1 = Entity0.put(properties, Properties)
+    ;   Entity1 = Entity0
+    ),
+    (   Entity1.parts == []
+    ->  Entity = Entity1
+    ;   maplist(entity_files, Entity1.parts, Parts),
+        Entity = Entity1.put(parts, Parts)
+    ).
+
+file_pair(Key-Value0, Key-Value) :-
+    (   kb_property_kind(Key, file)
+    ->  model_file(Value0, Value)
+    ;   Value = Value0
+    ).
+
 % entity_names(+Entity, -Names): Entity's name and its parts' names.
 entity_names(Entity, [Entity.name|Names]) :-
     foldl(part_names, Entity.parts, [], Names).
@@ -271,7 +305,8 @@ scenario_records(Scenario, Entities) :-
     (   created(Scenario)
     ->  records(Scenario, Entities)
     ;   kb_scenario(Scenario, Members)
-    ->  maplist(kb_entity_description, Members, Entities)
+    ->  maplist(kb_entity_description, Members, Entities0),
+        maplist(entity_files, Entities0, Entities)
     ;   existence_error(scenario, Scenario)
     ).
 
@@ -324,6 +359,10 @@ sub_entity(E, Sub) :-
 %          does not build the entity from (the message names the entity
 %          and the properties it accepts; kb_class_properties/2).
 %   @error type_error(Type, Value) for a value of the wrong type.
+%   @error permission_error(access, model_file, Path),
+%          existence_error(model_file, Path) or
+%          domain_error(model_file(Format), Path) for a model file outside
+%          the asset directories, missing or malformed (model_file/2).
 
 scenario_set_property(Scenario, Name, Key, Value) :-
     must_be(atom, Scenario),
@@ -343,7 +382,11 @@ set_property_(Scenario, Name, Key, Value) :-
     (   Key == pose
     ->  kb_check_pose(Value, Pose),
         Entity1 = Entity.put(pose, Pose)
-    ;   check_property(Name, Entity.class, Key, Value, V),
+    ;   check_property(Name, Entity.class, Key, Value, V0),
+        (   kb_property_kind(Key, file)
+        ->  model_file(V0, V)
+        ;   V = V0
+        ),
         Entity1 = Entity.put(properties, Entity.properties.put(Key, V))
     ),
     replace_entity(Top, Name, Entity1, Top1),

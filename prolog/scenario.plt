@@ -366,6 +366,48 @@ test(entity_lookup_enumerates_parts,
      all(N == [kitchen_env, floor1, table1, pr2_robot, pr2_gripper, egg1])) :-
     scenario_entity(grasping, N, _).
 
+% --- model files: resolved when added or set (model_files.pl)
+
+test(explicit_mesh_gets_its_absolute_path, [setup(fresh(S)), cleanup(gone(S))]) :-
+    add_to_scenario(S, entity(g2, rigid_object, _{shape: mesh, file: "glass.obj",
+                                                  mass: 0.2})),
+    prop(S, g2, file, File),
+    string(File),
+    is_absolute_file_name(File),
+    sub_string(File, _, _, 0, "/glass.obj"),
+    prop(S, g2, friction, 0.5).                 % the class's default
+test(kb_glass_gets_its_absolute_path, [setup(fresh(S)), cleanup(gone(S))]) :-
+    add_to_scenario(S, glass1),
+    prop(S, glass1, file, File),
+    is_absolute_file_name(File),
+    prop(S, glass1, breaking_force, 40.0).
+test(a_file_outside_is_refused, [setup(fresh(S)), cleanup(gone(S)),
+                                  error(permission_error(access, model_file, "../x.obj"))]) :-
+    add_to_scenario(S, entity(g2, rigid_object, _{shape: mesh, file: "../x.obj",
+                                                  mass: 0.2})).
+test(a_refused_file_adds_nothing, [setup(fresh(S)), cleanup(gone(S)), Names == [egg1]]) :-
+    catch(add_to_scenario(S, [egg1, entity(g2, rigid_object,
+                                           _{shape: mesh, file: "none.obj", mass: 0.2})]),
+          error(existence_error(model_file, "none.obj"), _), true),
+    add_to_scenario(S, egg1),
+    scenario_entities(S, Names).
+test(set_a_file_resolves_it, [setup(fresh(S)), cleanup(gone(S))]) :-
+    add_to_scenario(S, entity(g2, rigid_object, _{shape: box, size_x: 0.1, size_y: 0.1,
+                                                  size_z: 0.1, mass: 0.2})),
+    scenario_set_property(S, g2, file, 'glass.obj'),
+    prop(S, g2, file, File),
+    is_absolute_file_name(File).
+test(set_a_missing_file, [setup(fresh(S)), cleanup(gone(S)),
+                          error(existence_error(model_file, "none.obj"))]) :-
+    add_to_scenario(S, glass1),
+    scenario_set_property(S, glass1, file, "none.obj").
+test(set_a_file_refused_changes_nothing, [setup(fresh(S)), cleanup(gone(S))]) :-
+    add_to_scenario(S, glass1),
+    prop(S, glass1, file, Before),
+    catch(scenario_set_property(S, glass1, file, "/etc/passwd"),
+          error(permission_error(access, model_file, _), _), true),
+    prop(S, glass1, file, Before).
+
 % --- threads
 
 % Each thread builds and changes its own scenario; none sees another's.

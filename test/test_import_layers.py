@@ -3,8 +3,8 @@
 A query goes service -> projection (Prolog's entry to the simulation side) -> workers ->
 simulation -> bags -> timeline, and its answer comes back the same way. A module may import
 its own stage and later ones, never an earlier one; every stage may import the vocabulary
-they share (the error, canonical JSON, the settings, the bag schema). The client imports no
-stage of the server at all. Imports under ``TYPE_CHECKING`` count too.
+they share (the error, canonical JSON, the settings, the bag schema, the model files). The
+client imports no stage of the server at all. Imports under ``TYPE_CHECKING`` count too.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import projection_server
 
 PACKAGE = Path(projection_server.__file__).parent
 STAGES = ['service', 'projection', 'workers', 'simulation', 'bags', 'timeline']
-SHARED = {'errors', 'canonical', 'settings', 'bags.schema'}
+SHARED = {'errors', 'canonical', 'settings', 'bags.schema', 'assets'}
 # Re-exports at the old paths, kept for one release; tools that drive the whole service.
 OUTSIDE = {'node', 'launcher', 'bindings', 'reproduce'}
 

@@ -26,8 +26,10 @@ import threading
 from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQuery
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from std_srvs.srv import Trigger
@@ -137,6 +139,13 @@ class ProjectionServerNode(Node):
         self.declare_parameter('ray_address', '', ParameterDescriptor(
             description='Ray cluster for projection_backend ray: auto, ray://host:port or '
                         'host:port (empty: start a local Ray instance)', read_only=True))
+        # String arrays without a default: an empty list would be typed as bytes.
+        self.declare_parameter('kb_files', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+            description='Turtle files added to the knowledge base at start (default: none)',
+            read_only=True))
+        self.declare_parameter('asset_paths', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+            description='Directories where model files resolve, after the package assets and '
+                        'before pybullet_data (default: none)', read_only=True))
         self.add_on_set_parameters_callback(self._check_parameters)
 
         bag_dir = self.get_parameter('bag_dir').value or None
@@ -154,7 +163,8 @@ class ProjectionServerNode(Node):
             backend=self.get_parameter('projection_backend').value,
             ray_address=self.get_parameter('ray_address').value)
         projection.start()
-        prolog_bridge.load()
+        prolog_bridge.load(options={name: self._string_array(name)
+                                    for name in ('kb_files', 'asset_paths')})
         self.queries = QueryManager(self._limits(), on_event=self._log_query)
 
         group = ReentrantCallbackGroup()
@@ -170,6 +180,12 @@ class ProjectionServerNode(Node):
         self.get_logger().info(
             f'answering Prolog queries on {self.get_fully_qualified_name()}/query '
             f'(max_engines={self.queries.limits.max_engines})')
+
+    def _string_array(self, name: str) -> list[str]:
+        try:
+            return list(self.get_parameter(name).value or [])
+        except ParameterUninitializedException:
+            return []
 
     def _limits(self, overrides: dict | None = None) -> ServerLimits:
         value = {p: self.get_parameter(p).value for p in

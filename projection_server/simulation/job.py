@@ -10,11 +10,12 @@ from pathlib import Path
 import threading
 from typing import Any, TYPE_CHECKING
 
+from projection_server import assets
 from projection_server.canonical import canonical_json
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.programs.plan import check_plan
-from projection_server.simulation.scenario import parse_scenario
+from projection_server.simulation.scenario import model_files, parse_scenario
 from projection_server.settings import check_physics
 
 if TYPE_CHECKING:
@@ -48,8 +49,9 @@ def code_version() -> str:
     return f'{version}+{digest.hexdigest()[:16]}'
 
 
-# The canonical JSON of the scenarios parse_scenario accepted last (oldest first).
-_VALID_SCENARIOS: dict[str, None] = {}
+# The canonical JSON of the scenarios parse_scenario accepted last (oldest first), and the
+# model files each names.
+_VALID_SCENARIOS: dict[str, tuple[str, ...]] = {}
 _VALID_LOCK = threading.Lock()
 
 
@@ -62,7 +64,9 @@ class Job:
     :mod:`projection_server.simulation.programs.plan`).
 
     Construct with :meth:`checked`, which validates everything that can be checked without a
-    simulator and fills in parameter defaults.
+    simulator and fills in parameter defaults. ``files`` are the content digests of the
+    model files the scenario names (:func:`projection_server.assets.digest`), by path:
+    a projection of an edited mesh is another projection.
     """
 
     scenario: dict[str, Any]
@@ -70,19 +74,27 @@ class Job:
     params: dict[str, float]
     physics: dict[str, float] = field(default_factory=dict)
     plan: list[Any] | None = None
+    files: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def checked(cls, scenario: Any, program: str, params: Any, physics: Any = None,
                 plan: Any = None) -> Job:
-        """Validate and normalize (raises ProjectionError with the matching kind)."""
+        """Validate and normalize (raises ProjectionError with the matching kind).
+
+        A model file must be an absolute path of a well formed file inside the asset
+        directories (:func:`projection_server.assets.checked`), whichever client made the
+        scenario; it is checked each time (a file may change), its content at most once
+        per modification."""
         # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
         text = canonical_json(scenario)
         with _VALID_LOCK:   # queries check their jobs from threads of their own
-            if text not in _VALID_SCENARIOS:   # a query's projections share their scenario
-                parse_scenario(scenario)
+            paths = _VALID_SCENARIOS.get(text)
+            if paths is None:   # a query's projections share their scenario
+                paths = tuple(model_files(parse_scenario(scenario)))
                 if len(_VALID_SCENARIOS) >= 64:
                     del _VALID_SCENARIOS[next(iter(_VALID_SCENARIOS))]
-                _VALID_SCENARIOS[text] = None
+                _VALID_SCENARIOS[text] = paths
+        files = {path: assets.checked(path) for path in paths}
         unit = get_program(program)
         values = unit.check(params if params is not None else {})
         chosen = check_physics(physics if physics is not None else {})
@@ -92,7 +104,7 @@ class Job:
         elif plan is not None:
             raise ProjectionError(ErrorKind.INVALID_PARAMETERS,
                                   f'{program} is a named program: it takes no plan')
-        job = cls(json.loads(text), program, values, chosen, plan)
+        job = cls(json.loads(text), program, values, chosen, plan=plan, files=files)
         object.__setattr__(job, '_scenario_json', text)   # what the keys are made of
         return job
 
@@ -113,22 +125,27 @@ class Job:
             return None
         parts = {'scenario': self._scenario_json, 'program': canonical_json(self.program),
                  'setup': canonical_json(setup),
-                 'settings': settings.projection_json(self.program, self.physics)}
+                 'settings': settings.projection_json(self.program, self.physics),
+                 **self._files_part()}
         if self.plan is not None:
             parts['plan'] = canonical_json(self.plan)
         return hashlib.sha256(_assembled(parts).encode()).hexdigest()
 
     def key(self, settings: Settings) -> str:
-        """Content hash of job, its settings and the code version: the cache key and the
-        bag's name. Physics chosen by the query count as what they amount to, so choosing
-        the program's own settings finds the same bag."""
+        """Content hash of job, its settings, the code version and the content of its model
+        files: the cache key and the bag's name. Physics chosen by the query count as what
+        they amount to, so choosing the program's own settings finds the same bag."""
         parts = {'scenario': self._scenario_json, 'program': canonical_json(self.program),
                  'params': canonical_json(self.params),
                  'settings': settings.projection_json(self.program, self.physics),
-                 'code': canonical_json(code_version())}
+                 'code': canonical_json(code_version()), **self._files_part()}
         if self.plan is not None:
             parts['plan'] = canonical_json(self.plan)
         return hashlib.sha256(_assembled(parts).encode()).hexdigest()
+
+    def _files_part(self) -> dict[str, str]:
+        # Absent for a scenario without model files: its key is what it always was.
+        return {'files': canonical_json(self.files)} if self.files else {}
 
 
 def _assembled(parts: dict[str, str]) -> str:

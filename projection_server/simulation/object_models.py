@@ -4,6 +4,13 @@ The paper (Kunze et al. 2011, sec. II) simulates breaking with "graph-based obje
 controllers that perform specialized computations in each simulation step". Here an object
 model is any object with ``after_step(physics)`` and ``sample()``
 (:class:`~projection_server.simulation.physics.ObjectModel`).
+
+Breaking is one criterion for every breakable object (:class:`Breakable`): the largest
+*equivalent load* of its contacts in a step, averaged over :data:`BREAK_WINDOW`, reaches its
+``breaking_force``. What differs is how a contact's load is found: an egg's shell
+(:class:`EggShell`) weighs its curvature and the gripper pads' mechanics; a rigid object
+(:class:`RigidBreakable`) meets the world with flat faces, so a contact's equivalent load is
+its normal force.
 """
 
 from __future__ import annotations
@@ -19,70 +26,39 @@ from projection_server.simulation import contact_mechanics as cm
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Gripper, Pad, Physics
 
-__all__ = ['BREAK_WINDOW', 'EggShell']
+__all__ = ['BREAK_WINDOW', 'Breakable', 'EggShell', 'RigidBreakable']
 
 
-BREAK_WINDOW = 1.0 / 60.0   # s over which the shell's load is averaged
+BREAK_WINDOW = 1.0 / 60.0   # s over which a breakable object's load is averaged
 CACHE_FORCE = 0.01          # relative change of a pad's force that re-solves its pressure
 CACHE_SHIFT = 5.0e-5        # m the shell may move on a pad before its pressure is re-solved
 CACHE_TURN = 2.0e-3         # rad it may turn
 
 
-class EggShell:
-    """A breakable egg shell: measures the load on its contacts and breaks above its limit.
+class Breakable:
+    """What every breakable object shares: its load, the window it is averaged over, and
+    breaking when the average reaches ``breaking_force`` (None: never).
 
-    Each physics step, the contact points of the egg are grouped by the touching body and
-    link, and each group's total normal force (Bullet's constraint solution) is turned into
-    an *equivalent load* (:mod:`~projection_server.simulation.contact_mechanics`): the force
-    that would give the same peak contact pressure when the egg is squeezed at its equator
-    between flat faces, which is what ``breaking_force`` means. The shell's load is the
-    largest equivalent load of a step averaged over the last :data:`BREAK_WINDOW` of
-    simulated time, and the egg breaks in the first step in which it reaches
-    ``breaking_force``. The window makes the criterion a property of the physics, not of the
-    time step: a steady squeeze gives its force at any step size, and an impact its impulse
-    over the window, where a single step's peak grows as the step shrinks.
-
-    * A gripper pad's contact is solved as a rubber layer (the pad's stiffness) over the
-      pad's real face. A pad centred on the egg touches its equator with its whole contact
-      patch: the equivalent load is the grip force. A pad centred off the egg's middle along
-      the long axis still touches the equator (its widest part) but near the pad's edge, so
-      part of the patch is cut off and the peak pressure rises; the patch grows with the
-      force, so the effect does too. This is why an egg grasped off-centre breaks at a lower
-      grip force. When the egg slips and a pad slides over it, the pad's rounded rim rides on
-      the shell and concentrates the load further (about 2 to 3 times the grip force).
-      The pad's solution is kept while the pad's force changes by less than
-      :data:`CACHE_FORCE` and the shell moves on the pad by less than :data:`CACHE_SHIFT`
-      and :data:`CACHE_TURN` (the load is scaled with the force meanwhile): within the
-      model's own discretisation error, at a fraction of the cost of a physics step.
-    * Any other contact (table, floor, other objects) is a large flat face: the equivalent
-      load is the normal force scaled by the shell's curvature at the contact point (an egg
-      is weaker at its pointed ends).
-
-    Whether the egg slips is left entirely to the rigid-body friction of the contacts.
-
-    A broken egg is replaced by its remains (``replace(physics, name)``, supplied by the
-    world builder) that the gripper no longer holds, and stays broken.
+    A subclass says what a step's load is (``_measure(physics)``: the largest equivalent
+    load of the object's contacts [N]). The load is averaged over the last
+    :data:`BREAK_WINDOW` of simulated time, and the object breaks in the first step in
+    which the average reaches ``breaking_force``: a steady squeeze gives its force at any
+    step size, and an impact its impulse over the window, where a single step's peak grows
+    as the step shrinks. A broken object is handed to ``replace(physics, name)`` (its
+    remains), and stays broken.
     """
 
-    def __init__(self, name: str, semi_axes: tuple[float, float, float],
-                 breaking_force: float | None,
-                 replace: Callable[[Physics, str], None], cache: bool = True):
+    def __init__(self, name: str, breaking_force: float | None,
+                 replace: Callable[[Physics, str], None]):
         self.name = name
-        self.semi_axes = semi_axes
         self.breaking_force = breaking_force
         self.broken = False
-        self.load = 0.0           # the shell's load (window average) after the last step [N]
+        self.load = 0.0           # the load (window average) after the last step [N]
         self._peak = 0.0          # largest load since the last sample [N]
         self._replace = replace
-        self._cache_on = cache
         self._window: deque[float] = deque()
         self._window_sum = 0.0
         self._window_steps = 1
-        # (body, link) of a pad -> (force, shell pose in the face's frame, load) of its
-        # last solution
-        self._cache: dict[tuple[int, int], tuple[float, tuple[float, ...], Quat, float]] = {}
-        self._pads: dict[tuple[int, int], tuple[Gripper, Pad]] = {}
-        self._pad_links: dict[int, list[int]] = {}   # gripper body -> its pads' links
         self._body_id = -1
         self._version = -1   # of the physics' bodies that the plan is of
 
@@ -117,12 +93,81 @@ class EggShell:
         """What the step needs of the world as it is now (once per change of its bodies)."""
         self._body_id = physics.body(self.name).body_id
         self._window_steps = max(1, round(BREAK_WINDOW * physics.settings.physics.rate_hz))
+        self._version = physics.bodies_version
+
+    def _measure(self, physics: Physics) -> float:
+        raise NotImplementedError
+
+
+class RigidBreakable(Breakable):
+    """A breakable rigid object (a glass, a plate): it meets the world with flat faces, so
+    the equivalent load of a contact is its normal force. The contact points of the body
+    (all its links) are grouped by the touching body and link; the step's load is the
+    largest group's total normal force (Bullet's constraint solution)."""
+
+    def _measure(self, physics: Physics) -> float:
+        points = physics.contact_points(self._body_id)
+        if not points:
+            return 0.0
+        groups: dict[tuple[int, int], float] = {}
+        for point in points:
+            key = (point[2], point[4])
+            groups[key] = groups.get(key, 0.0) + point[9]
+        largest = max(groups.values())
+        return largest if largest > 0.0 else 0.0
+
+
+class EggShell(Breakable):
+    """A breakable egg shell: measures the load on its contacts and breaks above its limit.
+
+    Each physics step, the contact points of the egg are grouped by the touching body and
+    link, and each group's total normal force (Bullet's constraint solution) is turned into
+    an *equivalent load* (:mod:`~projection_server.simulation.contact_mechanics`): the force
+    that would give the same peak contact pressure when the egg is squeezed at its equator
+    between flat faces, which is what ``breaking_force`` means. The shell breaks by the
+    criterion of :class:`Breakable`.
+
+    * A gripper pad's contact is solved as a rubber layer (the pad's stiffness) over the
+      pad's real face. A pad centred on the egg touches its equator with its whole contact
+      patch: the equivalent load is the grip force. A pad centred off the egg's middle along
+      the long axis still touches the equator (its widest part) but near the pad's edge, so
+      part of the patch is cut off and the peak pressure rises; the patch grows with the
+      force, so the effect does too. This is why an egg grasped off-centre breaks at a lower
+      grip force. When the egg slips and a pad slides over it, the pad's rounded rim rides on
+      the shell and concentrates the load further (about 2 to 3 times the grip force).
+      The pad's solution is kept while the pad's force changes by less than
+      :data:`CACHE_FORCE` and the shell moves on the pad by less than :data:`CACHE_SHIFT`
+      and :data:`CACHE_TURN` (the load is scaled with the force meanwhile): within the
+      model's own discretisation error, at a fraction of the cost of a physics step.
+    * Any other contact (table, floor, other objects) is a large flat face: the equivalent
+      load is the normal force scaled by the shell's curvature at the contact point (an egg
+      is weaker at its pointed ends).
+
+    Whether the egg slips is left entirely to the rigid-body friction of the contacts.
+
+    A broken egg is replaced by its remains (``replace(physics, name)``, supplied by the
+    world builder) that the gripper no longer holds, and stays broken.
+    """
+
+    def __init__(self, name: str, semi_axes: tuple[float, float, float],
+                 breaking_force: float | None,
+                 replace: Callable[[Physics, str], None], cache: bool = True):
+        super().__init__(name, breaking_force, replace)
+        self.semi_axes = semi_axes
+        self._cache_on = cache
+        # (body, link) of a pad -> (force, shell pose in the face's frame, load) of its
+        # last solution
+        self._cache: dict[tuple[int, int], tuple[float, tuple[float, ...], Quat, float]] = {}
+        self._pads: dict[tuple[int, int], tuple[Gripper, Pad]] = {}
+        self._pad_links: dict[int, list[int]] = {}   # gripper body -> its pads' links
+
+    def _plan(self, physics: Physics) -> None:
+        super()._plan(physics)
         self._pads = {(g.body_id, pad.link): (g, pad)
                       for g in physics.grippers.values() for pad in g.pads}
         # A gripper's pad links, asked for in one query when any of its pads is touched.
         self._pad_links = {g.body_id: [pad.link for pad in g.pads]
                            for g in physics.grippers.values()}
-        self._version = physics.bodies_version
 
     def _measure(self, physics: Physics) -> float:
         body_id = self._body_id

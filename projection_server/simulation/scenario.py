@@ -26,7 +26,7 @@ from typing import Any, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation import objects
-from projection_server.simulation.objects.registry import check_value, is_number, REQUIRED
+from projection_server.simulation.objects.registry import check_value, FILE, is_number, REQUIRED
 
 if TYPE_CHECKING:
     from collections.abc import Iterator, Mapping
@@ -38,6 +38,7 @@ __all__ = [
     'Pose',
     'Scenario',
     'accepted_properties',
+    'model_files',
     'parse_scenario',
 ]
 
@@ -106,6 +107,14 @@ def parse_scenario(data: Any) -> Scenario:
             _fail(f'entity name {entity.name!r} is used twice')
         seen.add(entity.name)
     return Scenario(name, tuple(entities))
+
+
+def model_files(scenario: Scenario) -> list[str]:
+    """The model files the entities of ``scenario`` name (their file-valued properties),
+    sorted, each once."""
+    return sorted({entity.properties[prop.name] for entity in scenario.entities
+                   for prop in entity.unit.properties
+                   if prop.kind == FILE and prop.name in entity.properties})
 
 
 def _collect(item: Any, out: list[Entity], where: str) -> None:

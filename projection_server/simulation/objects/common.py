@@ -11,7 +11,8 @@ if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['SPAWN_CLEARANCE', 'lift_clear', 'orientation', 'primitive', 'surface']
+__all__ = ['SPAWN_CLEARANCE', 'lift_clear', 'orientation', 'primitive', 'release_from_robots',
+           'surface']
 
 SPAWN_CLEARANCE = 1e-4   # m left between a spawned body and what it would otherwise touch
 
@@ -56,3 +57,15 @@ def lift_clear(physics: Physics, body_id: int) -> None:
         c.resetBasePositionAndOrientation(
             body_id, (position[0], position[1], position[2] + depth + SPAWN_CLEARANCE),
             quaternion)
+
+
+def release_from_robots(physics: Physics, body_id: int) -> None:
+    """Switch off the collisions of every link of ``body_id`` with every link of every
+    robot (a driven body): the broken remains of an object that no gripper or arm holds."""
+    c = physics.client
+    links = range(-1, c.getNumJoints(body_id))
+    for robot in physics.bodies.values():
+        if robot.driven:
+            for robot_link in range(-1, c.getNumJoints(robot.body_id)):
+                for link in links:
+                    c.setCollisionFilterPair(body_id, robot.body_id, link, robot_link, 0)

@@ -4,6 +4,7 @@
 A broken egg is replaced by its remains: a flat, spilled body of the same mass that the
 gripper's pads no longer hold, where the egg was (its bottom where the egg's lowest point
 was), falling on if the egg broke in the air, at rest if it broke against something.
+No robot holds the remains (their collisions with every robot are off).
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ import math
 from typing import Any, Callable, TYPE_CHECKING
 
 from projection_server.simulation.object_models import EggShell
-from projection_server.simulation.objects.common import lift_clear, orientation, surface
+from projection_server.simulation.objects.common import (lift_clear, orientation,
+                                                        release_from_robots, surface)
 from projection_server.simulation.objects.registry import (FRACTION, NONNEGATIVE, ObjectClass,
                                                            POSITIVE, Property, register,
                                                            REQUIRED)
@@ -96,9 +98,7 @@ def _remains_factory(semi_axes: tuple[float, float, float],
             flat_orientation)
         surface(c, body, props)
         c.resetBaseVelocity(body, velocity, (0.0, 0.0, 0.0))
-        for gripper in physics.grippers.values():
-            for link in range(-1, c.getNumJoints(gripper.body_id)):
-                c.setCollisionFilterPair(body, gripper.body_id, -1, link, 0)
+        release_from_robots(physics, body)
         physics.replace_body(name, body, Shape('sphere', tuple(2 * s for s in flat),
                                                REMAINS_COLOR))
     return replace
