@@ -49,7 +49,8 @@ bad_turtle(File) :-
 close_to(X, Y) :- abs(X-Y) < 1.0e-9.
 
 test(entities, Es == [cup1, egg1, floor1, glass1, kitchen_env, mug1, pancake1,
-                      pancake_maker1, pancake_mix1, pr2_gripper, pr2_robot, spatula1,
+                      pancake_maker1, pancake_mix1, panda_robot, pr2_gripper, pr2_robot,
+                      spatula1,
                       table1, tray1]) :-
     findall(E, kb_entity(E), Es).
 test(prototypes_are_not_entities, fail) :-

@@ -450,14 +450,17 @@ projection_program(Program, Formal) :-
 %!  projection_physics_setting(?Program, ?Name, -Setting:dict) is nondet.
 %
 %   Name is a physics setting that a query may choose for projections of
-%   Program (make_projection/5's physics(Dict) option).  Setting is a dict
+%   Program (make_projection/5's physics(Dict) option); `plan` for plans.  Setting is a dict
 %   with its name, unit, min, max, integer (`@true` or `@false`), doc and
 %   default (the program's, from config/physics.yaml); that of `rate_hz` has
 %   multiple_of: the step rate must be a multiple of the control and logging
 %   rates.
 
 projection_physics_setting(Program, Name, Setting) :-
-    projection_program(Program, _),
+    (   Program == plan                 % a plan: the settings file's defaults
+    ->  true
+    ;   projection_program(Program, _)
+    ),
     py_call('projection_server.projection':physics_settings(Program), Settings),
     member(Setting, Settings),
     get_dict(name, Setting, Name0),

@@ -68,7 +68,7 @@ def records_of(messages: Iterable[tuple[str, int, Any]]) -> Iterator[Record]:
                   tr.transform.rotation.w)) for tr in msg.transforms])
         elif kind == 'contacts':
             yield Record(kind, t_ns, [(c.body_a, c.link_a, c.body_b, c.link_b, c.normal_force,
-                                       c.normal.z) for c in msg.contacts])
+                                       (c.normal.x, c.normal.y, c.normal.z)) for c in msg.contacts])
         elif kind == 'gripper':
             yield Record(kind, t_ns, (msg.name, msg.command, msg.finger_links))
         elif kind == 'objects':

@@ -125,7 +125,8 @@ class Record(NamedTuple):
 
     * ``info``: the ``ProjectionInfo`` message;
     * ``tf_static``, ``tf``: ``[(parent frame, child frame, (x, y, z), (x, y, z, w)), ...]``;
-    * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal z), ...]``;
+    * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal), ...]``, the
+      normal ``(x, y, z)`` pointing from b to a;
     * ``gripper``: ``(name, command, finger links)``;
     * ``objects``: ``[(name, load, load limit, broken), ...]``;
     * ``task``: ``(robot, step, action, target)``, one per robot (of tasks that report

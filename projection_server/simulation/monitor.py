@@ -121,7 +121,7 @@ class Monitor:
             values += numbers
         template = _contacts_template(tuple(pair for pair, _ in contacts))
         messages.append((TOPICS['contacts'], template.msgtype, template.pack(values)))
-        records.append(Record('contacts', t, [(*pair, numbers[6], float(numbers[5]))
+        records.append(Record('contacts', t, [(*pair, numbers[6], tuple(map(float, numbers[3:6])))
                                               for pair, numbers in contacts]))
         for gripper in physics.grippers.values():
             command = gripper.command

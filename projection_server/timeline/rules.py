@@ -29,6 +29,10 @@ __all__ = ['Rules', 'sorted_events']
 # Fluents of an object's state (not of its relations): an interval of one that spans the end
 # of a drop of its object is reported as two, before and after the drop, so that a state
 # the object is in when it lands holds after the drop (what section II's query asks).
+# How short the mean of the fingers' contact normals is for them to hold what they touch
+# (fingers that touch it side by side, pushing, do not).
+OPPOSED = 0.5
+
 _STATES = frozenset({'broken', 'upside_down'})
 
 
@@ -94,13 +98,18 @@ class Rules:
         robots = set(self.robots)
         for i, sample in enumerate(self.samples):
             touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
+            # obj -> {(body, link): the contact normal, pointing from that link into obj}
+            normals: dict[str, dict[tuple[str, str], Any]] = defaultdict(dict)
             held: set[str] = set()
-            for body_a, link_a, body_b, link_b, force, normal_z in sample.contacts:
+            for body_a, link_a, body_b, link_b, force, normal in sample.contacts:
+                normal_z = normal[2]
                 if force < self.settings.contact_force_min or body_a == body_b:
                     continue
                 self._booleans[('contact', tuple(sorted((body_a, body_b))))][i] = True
                 touching[body_a].add((body_b, link_b))
                 touching[body_b].add((body_a, link_a))
+                normals[body_a][(body_b, link_b)] = normal
+                normals[body_b][(body_a, link_a)] = tuple(-n for n in normal)
                 self._touching[body_a][i] = self._touching[body_b][i] = True
                 for robot, link, obj in ((body_a, link_a, body_b), (body_b, link_b, body_a)):
                     if robot in robots and link:   # the base ('') may rest on its mount
@@ -115,7 +124,8 @@ class Rules:
             for name, gripper in sample.grippers.items():
                 fingers = {(name, link) for link in gripper.finger_links}
                 for obj, links in touching.items():
-                    if fingers and fingers <= links:
+                    if fingers and fingers <= links and _opposed(
+                            [normals[obj][f] for f in fingers]):
                         held.add(obj)
                         self._booleans[('in_gripper', (obj,))][i] = True
                         self._held[(name, obj)][i] = True
@@ -346,3 +356,10 @@ class Rules:
             position, orientation = sample.poses[obj]
             return rot.T @ (position - origin), rot.T @ orientation, rot
         return None
+
+
+def _opposed(normals: list[Any]) -> bool:
+    """Whether contact normals (one per finger, unit vectors) squeeze from opposite sides:
+    their mean is short (two opposite fingers: about 0; fingers side by side pushing: 1)."""
+    mean = np.mean(np.asarray(normals, dtype=float), axis=0)
+    return float(np.linalg.norm(mean)) < OPPOSED

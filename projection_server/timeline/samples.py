@@ -63,7 +63,8 @@ class Sample:
     moving: set[str] = field(default_factory=set)
     robots: set[str] = field(default_factory=set)
     # (body_a, link_a, body_b, link_b, normal force, normal z)
-    contacts: list[tuple[str, str, str, str, float, float]] = field(default_factory=list)
+    contacts: list[tuple[str, str, str, str, float, tuple[float, float, float]]] = field(
+        default_factory=list)
     grippers: dict[str, Gripper] = field(default_factory=dict)
     objects: dict[str, ObjectState] = field(default_factory=dict)
     tasks: dict[str, TaskState] = field(default_factory=dict)   # robot -> its task's state

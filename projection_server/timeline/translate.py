@@ -22,7 +22,9 @@ Fluents (arguments are entity names):
 * ``contact(A, B)``: A and B touch with at least ``contact_force_min``; A < B by name.
 * ``supported_by(A, B)``: A touches B (not a gripper) and the contact normal, from B to A,
   is within ``support_max_angle`` of straight up.
-* ``in_gripper(O)``: O touches every finger link of a gripper.
+* ``in_gripper(O)``: O touches every finger link of a gripper, from opposite sides (the mean
+  of the fingers' contact normals is shorter than 0.5: fingers side by side that push O do
+  not hold it).
 * ``on(O, S)``: O is supported by S and not in a gripper (it rests on S).
 * ``broken(O)``: O's object model reports it broken. An interval of a state fluent of O
   (``broken``, ``upside_down``) that spans the end of a ``drop(O)`` is reported as two:

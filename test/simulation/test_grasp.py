@@ -161,7 +161,8 @@ def held_egg_timeline(offset, release_at=None):
         s = min(max((t - 0.5) / 0.5, 0.0), 1.0)
         egg = np.array([0.0, 0.0, 1.0]) + s * np.asarray(offset)
         held = release_at is None or t < release_at
-        contacts = [('egg1', '', 'g', link, 5.0, 0.0) for link in ('l', 'r')] if held else []
+        contacts = ([('egg1', '', 'g', 'l', 5.0, (0.0, -1.0, 0.0)),
+                     ('egg1', '', 'g', 'r', 5.0, (0.0, 1.0, 0.0))] if held else [])
         poses = Poses()
         for name, pose in {'egg1': (egg, eye), 'g/l': (np.array([0.0, 0.02, 1.0]), eye),
                            'g/r': (np.array([0.0, -0.02, 1.0]), eye),

@@ -23,14 +23,21 @@ EYE = np.eye(3)
 
 def sample(t, poses, contacts=(), moving=('box',), **fields):
     """A monitoring sample at ``t`` [s] of ``poses`` (name -> position or (position,
-    rotation)) and ``contacts`` (body_a, link_a, body_b, link_b, force)."""
+    rotation)) and ``contacts`` (body_a, link_a, body_b, link_b, force), each with the normal
+    of its fingers' (:data:`NORMALS`) or straight up."""
     frames = Poses()
     for name, pose in poses.items():
         if not isinstance(pose, tuple):
             pose = (np.asarray(pose, dtype=float), EYE)
         frames.setdefault(name, pose)
     return Sample(t, poses=frames, moving=set(moving),
-                  contacts=[(*c, 1.0) for c in contacts], **fields)
+                  contacts=[(*c, NORMALS.get(c[1], (0.0, 0.0, 1.0))) for c in contacts],
+                  **fields)
+
+
+# The normals of the fingers' contacts (from the object to the finger): they squeeze from
+# either side.
+NORMALS = {'l': (0.0, 1.0, 0.0), 'r': (0.0, -1.0, 0.0)}
 
 
 def events(samples, name=None):

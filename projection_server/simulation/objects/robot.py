@@ -43,7 +43,7 @@ ROBOT = register(ObjectClass(
     name='robot',
     properties=(Property('model', 'pr2', NAME, '', 'the robot model that builds it'),
                 Property('gripper', None, NAME, '', 'pr2: its gripper entity or asset'),
-                Property('urdf', None, FILE, '', 'urdf: the model file'),
+                Property('file', None, FILE, '', 'urdf: the URDF'),
                 Property('tool_link', None, NAME, '', 'urdf: the link of the tool point'),
                 Property('tool_offset', None, VECTOR, 'm',
                          "urdf: the tool point in the tool link's frame"),

@@ -156,6 +156,7 @@ class Arm(Manipulator):
         self._gain = gain
         self._target: tuple[tuple[float, ...], tuple[float, ...]] | None = None
         self._solution: np.ndarray | None = None
+        self._home = np.asarray(self._now())   # where the arm started
 
     def _now(self) -> list[float]:
         return [s[0] for s in self._client.getJointStates(self.body_id, self._joints)]
@@ -165,10 +166,25 @@ class Arm(Manipulator):
 
     def _solve(self, position: Sequence[float], orientation: Sequence[float],
                seed: Sequence[float], what: str) -> np.ndarray:
-        values, error, angle = self.kinematics.solve(position, orientation, seed)
-        if error > REACH_TOLERANCE[0] or angle > REACH_TOLERANCE[1]:
-            raise _unreachable(self.name, what, position, error, angle)
-        return values
+        # Damped least squares may stall at a joint limit from one start: a pose is
+        # unreachable only if it is from the joints now, from the home pose and from the
+        # middle of the joints' ranges.
+        best = None
+        for start in (seed, self._home, self._middle()):
+            values, error, angle = self.kinematics.solve(position, orientation, start)
+            if error <= REACH_TOLERANCE[0] and angle <= REACH_TOLERANCE[1]:
+                return values
+            if best is None or error < best[0]:
+                best = (error, angle)
+        raise _unreachable(self.name, what, position, *best)
+
+    def _middle(self) -> np.ndarray:
+        k = self.kinematics
+        middle = np.asarray(self._home, float).copy()
+        columns = [k.movable.index(j) for j in k.joints]
+        finite = np.isfinite(k.lower) & np.isfinite(k.upper)
+        middle[columns] = np.where(finite, (k.lower + k.upper) / 2, middle[columns])
+        return middle
 
     def check_reach(self, position: Sequence[float], orientation: Sequence[float],
                     what: str) -> None:

@@ -2,8 +2,8 @@
 
 The robot entity's properties:
 
-* ``urdf``: the model file (resolved in the asset directories), loaded with its base fixed
-  at the entity's pose (the base frame of the URDF);
+* ``file``: the URDF (resolved in the asset directories), loaded with its base fixed at the
+  entity's pose (the base frame of the URDF);
 * ``tool_link`` and ``tool_offset``: the link that carries the tool point and the point's
   offset in that link's frame, midway between the finger pads; the tool frame is the link's
   frame (its z axis should be the direction the fingers point, y the one they close along:
@@ -41,8 +41,8 @@ if TYPE_CHECKING:
 
 __all__ = ['PROPERTIES', 'URDF_ARM']
 
-PROPERTIES = ('urdf', 'tool_link', 'tool_offset', 'finger_joints', 'max_force', 'home')
-REQUIRED = ('urdf', 'tool_link', 'tool_offset', 'finger_joints', 'max_force')
+PROPERTIES = ('file', 'tool_link', 'tool_offset', 'finger_joints', 'max_force', 'home')
+REQUIRED = ('file', 'tool_link', 'tool_offset', 'finger_joints', 'max_force')
 TRACKING_RATE = 24.0   # 1/s, as the gantry's (robots.gantry)
 COUPLING_FORCE = 100.0   # N of the gear that couples mimic fingers
 FRICTION = 1.0           # of every link: the fingers' pads are rubber
@@ -54,7 +54,7 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{entity.name}: a URDF arm is driven by plans only (the named '
                               'programs drive the PR2 gripper); give a plan([...])')
-    urdf = p['urdf']
+    urdf = p['file']
     orientation = c.getQuaternionFromEuler(entity.pose.rpy)
     body_id = c.loadURDF(urdf, entity.pose.xyz, orientation, useFixedBase=True,
                          flags=c.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT)
