@@ -127,10 +127,11 @@ MUG = '''create_scenario(S), add_to_scenario(S, [kitchen_env, pr2_robot, mug1]),
         move_to(mug1, [0, -0.12, 0.05], [orientation(side(pi/2)), speed(1.0),
                                          angular_speed(3)]),
         move_to(mug1, [0, 0, 0.05], [speed(0.1)]), close_gripper(8), wait(0.3),
-        move_by([0, 0, 0.1]), wait(1.0)]), [], TL), {outcome}'''
+        move_by([0, 0, 0.1]), wait(1.0)]), [], {options}, TL), {outcome}'''
 
 
-def test_a_heavier_mug_slips_at_a_force_that_holds_a_light_one(call):
-    (light,) = ask(call, MUG.format(mass=0.3, outcome=OUTCOME))
-    (heavy,) = ask(call, MUG.format(mass=1.2, outcome=OUTCOME))
+@pytest.mark.parametrize('options', ['[]', FINER])
+def test_a_heavier_mug_slips_at_a_force_that_holds_a_light_one(call, options):
+    (light,) = ask(call, MUG.format(mass=0.3, outcome=OUTCOME, options=options))
+    (heavy,) = ask(call, MUG.format(mass=1.2, outcome=OUTCOME, options=options))
     assert (light['O'], heavy['O']) == ('ok', 'slip')

@@ -48,7 +48,7 @@ def test_the_readmes_grasp_plan_agrees_with_the_built_in_grasp_on_table_i(call):
 
 
 DROP = '''make_projection(grasping, plan([
-    move_to(egg1, [0.09, 0, 0], [orientation(side(pi)), speed(2.0), angular_speed(6.0)]),
+    move_to(egg1, [-0.09, 0, 0], [orientation(side(0)), speed(2.0)]),
     move_to(egg1, [0, 0, 0], [speed(0.15)]), close_gripper(5), wait(0.3),
     move_by([0, 0, 0.1], [speed(0.2)]), move_by([0, Side, 0], [speed(0.3)]),
     move_by([0, 0, Down], [speed(0.2)]), open_gripper, wait(1.0)]),

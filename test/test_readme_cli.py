@@ -138,8 +138,8 @@ DOCUMENTED = {
     "{id: 'me/*'}": _finished,
     "{mode: 0, query: 'make_projection(grasping, grasp_object, [(F, force, [1, 5, 11])], T),"
     " not(occurs(break, _, T)), not(occurs(slip, _, T))', timeout: 120}": _projected,
-    "{mode: 0, query: 'make_projection(grasping, plan([move_to(egg1, [0.09, 0, 0],"
-    " [orientation(side(pi)), speed(2.0), angular_speed(6.0)]), move_to(egg1, [0, 0, 0],"
+    "{mode: 0, query: 'make_projection(grasping, plan([move_to(egg1, [-0.09, 0, 0],"
+    " [orientation(side(0)), speed(2.0)]), move_to(egg1, [0, 0, 0],"
     " [speed(0.15)]), close_gripper(F), wait(0.3), move_by([0, 0, 0.1]), wait(1.0)]),"
     " [(F, force, [1, 5, 11])], T), not(occurs(break, _, T)), not(occurs(slip, _, T))',"
     " timeout: 120}": _projected,

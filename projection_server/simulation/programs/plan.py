@@ -38,14 +38,14 @@ Bounds, checked before anything runs: at most :data:`MAX_STEPS` steps, and at mo
 :data:`MAX_DURATION` seconds of simulated time by a bound that takes every motion as
 :data:`MAX_TRAVEL` metres or its angle at its speed, each gripper step as
 :data:`GRIPPER_TIME` and each wait as its seconds. When its steps are done the plan waits
-until the world is at rest (at most :data:`SETTLE_AFTER` s), so that what it let go of
-lands. Nothing in the interpreter looks at the outcome.
+until the world has been at rest for :data:`REST_TIME` (at most :data:`SETTLE_AFTER` s), so
+that what it let go of lands. Nothing in the interpreter looks at the outcome.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence, TYPE_CHECKING
+from typing import Any, Callable, Sequence, TYPE_CHECKING
 
 import numpy as np
 
@@ -75,7 +75,8 @@ MAX_FORCE = 1000.0         # N a close_gripper may ask for (the gripper caps it 
 CLOSING_SPEED = 0.03       # m/s of each finger
 OPENING_SPEED = 0.1        # m/s of each finger
 FINGERS_STILL = (0.1, 2e-4)   # the fingers have stopped: moved < 0.2 mm in 0.1 s
-REST_SPEED = 1e-3          # m/s below which a body is at rest
+REST_SPEED = 0.01          # m/s below which a body is at rest (a falling one is faster
+REST_TIME = 0.1            # from its first sample); and for how long the world must be
 FLIP_MARGIN = 0.1          # rad by which a half-turned grasp must be nearer to be taken
 
 class PlanTooLong(ProjectionError):
@@ -292,15 +293,27 @@ def _min_jerk(s: float) -> float:
     return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
-def _slerp(a: np.ndarray, b: np.ndarray, s: float) -> np.ndarray:
-    dot = float(np.dot(a, b))
+def _path(start: tuple[np.ndarray, np.ndarray], goal: tuple[np.ndarray, np.ndarray]
+          ) -> Callable[[float], tuple[tuple[float, ...], tuple[float, ...]]]:
+    """The pose at progress ``s`` (0..1) of the straight line from ``start`` to ``goal``,
+    its orientation turned on the great circle between theirs; in plain floats."""
+    (x0, y0, z0), (x1, y1, z1) = map(tuple, (start[0], goal[0]))
+    q0, q1 = np.asarray(start[1], float), np.asarray(goal[1], float)
+    dot = float(np.dot(q0, q1))
     if dot < 0.0:
-        b, dot = -b, -dot
-    if dot > 0.9995:
-        q = a + s * (b - a)
-        return q / np.linalg.norm(q)
-    theta = math.acos(dot)
-    return (math.sin((1 - s) * theta) * a + math.sin(s * theta) * b) / math.sin(theta)
+        q1, dot = -q1, -dot
+    a = tuple(map(float, q0))
+    b = tuple(map(float, q1))
+    theta = math.acos(min(1.0, dot))
+    sin_theta = math.sin(theta)
+
+    def pose(s: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        position = (x0 + (x1 - x0) * s, y0 + (y1 - y0) * s, z0 + (z1 - z0) * s)
+        if sin_theta < 1e-6:
+            return position, b if s >= 1.0 else a
+        wa, wb = math.sin((1 - s) * theta) / sin_theta, math.sin(s * theta) / sin_theta
+        return position, tuple(wa * u + wb * v for u, v in zip(a, b))
+    return pose
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> float:
@@ -367,12 +380,16 @@ class PlanTask:
         self._rate = physics.settings.physics.rate_hz
         self.index = -1
         self.target = ''              # the object the current step is about
-        self._motion: tuple[Any, ...] | None = None   # (start time, duration, poses)
+        self._motion: tuple[Any, ...] | None = None   # (start time, duration, path)
+        self._still: float | bool | None = None
         self._started = 0.0
         self._openings: list[tuple[float, float]] = []
         self._done_at: float | None = None
+        self._rest_since: float | None = None
         position, orientation = self.robot.tool_pose()
         self._pose = (np.asarray(position, float), np.asarray(orientation, float))
+        if self.robot.every_step:
+            physics.step_hooks.append(self._follow)
 
     # --- trees (simulation.branching) ---------------------------------------------------
     def _ground(self, params: Mapping[str, float]) -> list[dict[str, Any]]:
@@ -407,27 +424,53 @@ class PlanTask:
                 self._start(self.steps[self.index], t)
             elif self._done_at is None:
                 self._done_at = t
-        if self._motion is not None:
-            start, duration, (p0, q0), (p1, q1) = self._motion
-            s = _min_jerk((t - start) / duration)
-            self._pose = (p0 + (p1 - p0) * s, _slerp(q0, q1, s))
+        self._move(t)
+
+    def _move(self, t: float) -> None:
+        """Servo the tool to the motion's pose at time ``t`` (in plain floats: it runs at
+        every physics step)."""
+        motion = self._motion
+        if motion is None:
+            if self._still is not True:
+                self.robot.servo(*self._pose)
+                self._still = True
+            return
+        start, duration, path = motion
+        s = _min_jerk((t - start) / duration)
+        if s == self._still:   # the motion's end, reached before
+            return
+        self._still = s if s >= 1.0 else None
+        self._pose = path(s)
         self.robot.servo(*self._pose)
 
+    def _follow(self) -> None:
+        """After each physics step: the pose of the next step, for a robot that takes it
+        every step."""
+        self._move((self._physics.step_count + 1) / self._rate)
+
     def finished(self, physics: Physics) -> bool:
-        """The steps are done and the world has come to rest (or had its time for it)."""
+        """The steps are done and the world has been at rest for :data:`REST_TIME` (or had
+        :data:`SETTLE_AFTER` for it)."""
         if self._done_at is None:
             return False
-        if physics.time >= self._done_at + SETTLE_AFTER:
+        t = physics.time
+        if t >= self._done_at + SETTLE_AFTER:
             return True
         c = physics.client
-        return all(math.hypot(*c.getBaseVelocity(b.body_id)[0]) < REST_SPEED
-                   for b in physics.bodies.values() if not b.static and not b.driven
-                   and b.group is None)
+        if all(math.hypot(*c.getBaseVelocity(b.body_id)[0]) < REST_SPEED
+               for b in physics.bodies.values()
+               if not b.static and not b.driven and b.group is None):
+            if self._rest_since is None:
+                self._rest_since = t
+            return t - self._rest_since >= REST_TIME - 1e-9
+        self._rest_since = None
+        return False
 
     def _start(self, step: dict[str, Any], t: float) -> None:
         action = step['action']
         self._started = t
         self._motion = None
+        self._still = None   # True: the tool is at rest; 1.0: at a motion's end
         if step.get('object') is not None:
             self.target = step['object']
         gripper = self.robot.gripper
@@ -439,7 +482,7 @@ class PlanTask:
             turn = _angle(goal[1], self._pose[1])
             duration = max(distance / step.get('speed', DEFAULT_SPEED),
                            turn / step.get('angular_speed', DEFAULT_TURN_SPEED))
-            self._motion = (t, max(duration, 1.0 / self._rate), self._pose, goal)
+            self._motion = (t, max(duration, 1.0 / self._rate), _path(self._pose, goal))
         elif action == 'open_gripper':
             gripper.open(gripper.max_opening, OPENING_SPEED)
         elif action == 'close_gripper':

@@ -1,8 +1,8 @@
 """``pr2``: the PR2's parallel-jaw gripper on a gantry (lift along z, approach along x of
 its base frame), parked :data:`PARK_HEIGHT` above the robot's pose until a program places
-it; for plans, on six joints that move its tool point anywhere in reach and turn it any
-way (:class:`~projection_server.simulation.robots.manipulator.CartesianGantry`). No arm is
-simulated.
+it; for plans, free, held at the plan's tool pose by a constraint, anywhere in its reach
+and turned any way (:class:`~projection_server.simulation.robots.manipulator.FloatingTool`).
+No arm is simulated.
 
 The gripper's data are a URDF and a YAML description beside it (``assets/<name>.urdf`` +
 ``.yaml``, ``<name>`` the robot's ``gripper`` or the stem of its gripper entity's ``urdf``):
@@ -22,7 +22,7 @@ import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.physics import Body, Gripper, Pad, Shape
-from projection_server.simulation.robots.manipulator import CartesianGantry
+from projection_server.simulation.robots.manipulator import FloatingTool
 from projection_server.simulation.robots.registry import assets_dir, register, RobotModel
 
 if TYPE_CHECKING:
@@ -49,19 +49,17 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
     free = physics.tool_control
     urdf = assets_dir() / spec['free_urdf' if free else 'urdf']
     x, y, z = entity.pose.xyz
-    body_id = c.loadURDF(str(urdf), (x, y, z if free else z + PARK_HEIGHT),
-                         useFixedBase=True)
+    body_id = c.loadURDF(str(urdf), (x, y, z + PARK_HEIGHT), useFixedBase=not free)
     joints, links = {}, {}
     for j in range(c.getNumJoints(body_id)):
         info = c.getJointInfo(body_id, j)
         joints[info[1].decode()] = j
         links[j] = info[12].decode()
     link_index = {name: j for j, name in links.items()}
+    link_index[c.getBodyInfo(body_id)[0].decode()] = -1   # the root link
     try:
         joint_map = {'fingers': [joints[n] for n in spec['joints']['fingers']]}
-        if free:
-            axes = [joints[n] for n in spec['free_joints']]
-        else:
+        if not free:
             joint_map.update(lift=joints[spec['joints']['lift']],
                              approach=joints[spec['joints']['approach']])
         boxes = _urdf_boxes(urdf)
@@ -72,9 +70,13 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'gripper asset {urdf.name}: unknown name {exc}') from exc
     link_shapes: dict[int, list[tuple[Shape, tuple[float, float, float]]]] = {}
+    # The root's frame on /tf is its centre of mass: its boxes are placed relative to it.
+    root_inertial = np.asarray(c.getDynamicsInfo(body_id, -1)[3])
     for box in boxes.values():
-        link_shapes.setdefault(link_index[box['link']], []).append(
-            (Shape('box', box['size'], (0.3, 0.3, 0.35, 1.0)), box['origin']))
+        link = link_index[box['link']]
+        origin = np.asarray(box['origin']) - (root_inertial if link < 0 else 0.0)
+        link_shapes.setdefault(link, []).append(
+            (Shape('box', box['size'], (0.3, 0.3, 0.35, 1.0)), tuple(map(float, origin))))
     limits = {'max_force': math.inf, 'max_opening': math.inf}
     if gripper is not None:
         limits = {key: gripper.properties[key] for key in limits}
@@ -92,27 +94,31 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
                    position_gain=gain, **limits)
     physics.grippers[entity.name] = hand
     if free:
-        _park(physics, entity.name, body_id, axes, hand, spec, gain)
+        _park(physics, entity, body_id, hand, spec, gain)
 
 
-def _park(physics: Physics, name: str, body_id: int, axes: list[int], hand: Gripper,
+def _park(physics: Physics, entity: Entity, body_id: int, hand: Gripper,
           spec: dict[str, Any], gain: float) -> None:
-    """The six-joint gripper as a manipulator, parked :data:`PARK_HEIGHT` above the robot's
-    pose, pointing along +x, its fingers open."""
+    """The free gripper as a manipulator, parked :data:`PARK_HEIGHT` above the robot's pose,
+    its fingers pointing along +x, open."""
     c = physics.client
-    tool = CartesianGantry(c, name, body_id, axes, axes[-1], hand,
-                           float(spec['gantry_force']), float(spec['free_torque']), gain)
-    for joint, value in zip(axes, (0.0, 0.0, PARK_HEIGHT, 0.0, 0.0, math.pi / 2)):
-        c.resetJointState(body_id, joint, value)
+    # The palm's fingers point along its -x: the tool frame (fingers along z) is the palm
+    # frame turned a quarter turn about y; parked, the tool points along the world's +x.
+    tool = ((0.0, 0.0, 0.0), c.getQuaternionFromEuler((0.0, -math.pi / 2, 0.0)))
+    parked = c.multiplyTransforms((0.0, 0.0, 0.0), c.getQuaternionFromEuler(
+        (0.0, math.pi / 2, 0.0)), *c.invertTransform(*tool))
+    x, y, z = entity.pose.xyz
+    c.resetBasePositionAndOrientation(body_id, (x, y, z + PARK_HEIGHT), parked[1])
     if math.isinf(hand.max_opening):   # no gripper entity: the fingers' own travel
         hand.max_opening = sum(c.getJointInfo(body_id, j)[9] for j in hand.fingers)
-    position, orientation = tool.tool_pose()
-    tool.servo(position, orientation)
+    reach = tuple(tuple(r) for r in spec['free_reach'])
+    manipulator = FloatingTool(c, entity.name, body_id, hand, tool, entity.pose.xyz, reach,
+                               float(spec['gantry_force']), gain)
     opening = min(hand.max_opening, OPEN_WIDTH)
     for finger in hand.fingers:
         c.resetJointState(body_id, finger, opening / 2)
     hand.open(opening, speed=0.1)
-    physics.manipulators[name] = tool
+    physics.manipulators[entity.name] = manipulator
 
 
 @functools.cache

@@ -8,9 +8,8 @@ frame about the tool point (:mod:`projection_server.simulation.programs.plan`); 
 follows the pose it is given at every control step with its joints' position control and a
 force limit, so a robot that pushes against something pushes with at most that force.
 
-* :class:`CartesianGantry`: a gripper carried by six position-controlled joints (x, y, z,
-  then yaw, roll, pitch), the PR2's gripper without its arm: it reaches every pose in its
-  joints' ranges, and its inverse kinematics is closed form.
+* :class:`FloatingTool`: a gripper without an arm held at the tool pose by a constraint,
+  the PR2's gripper: it reaches every pose within its reach and turns any way.
 * :class:`Arm`: a URDF arm, its joints found by damped least squares
   (:mod:`.kinematics`); a pose the solver cannot reach within its tolerance is an error
   of kind ``unreachable``.
@@ -30,7 +29,7 @@ from projection_server.simulation.robots.kinematics import Kinematics
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Gripper
 
-__all__ = ['Arm', 'CartesianGantry', 'Manipulator', 'REACH_TOLERANCE']
+__all__ = ['Arm', 'FloatingTool', 'Manipulator', 'REACH_TOLERANCE']
 
 # How close a solved pose must come to the one asked for: ten times the solver's own
 # tolerances (kinematics.POSITION_TOLERANCE, ANGLE_TOLERANCE), which it meets wherever it
@@ -45,6 +44,9 @@ class Manipulator:
     name: str
     body_id: int
     gripper: Gripper
+    # Given the tool's pose at every physics step, not only at control steps: a target that
+    # jumps at the control rate shakes what the tool holds, the more the finer the step.
+    every_step = False
 
     def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """The tool point's world position and orientation (x, y, z, w) now."""
@@ -73,65 +75,63 @@ def _unreachable(robot: str, what: str, position: Sequence[float], error: float,
                            f'{error * 1000:.1f} mm and {math.degrees(angle):.1f} deg')
 
 
-class CartesianGantry(Manipulator):
-    """A tool carried by six joints of ``body_id``: ``joints`` x, y, z (prismatic, along the
-    base's axes), then yaw (z), roll (x), pitch (y) (revolute); the tool frame is the pitch
-    joint's child link frame. Its zero is the base frame."""
+class FloatingTool(Manipulator):
+    """A gripper ``body_id`` with no arm, free to move and held at the tool pose by a fixed
+    constraint whose frame moves: it reaches every pose within :attr:`reach` of ``home``'s
+    position (m, along each axis; z from ``reach[2][0]`` to ``reach[2][1]``), and pushes with
+    at most ``force``. ``tool`` is the tool frame in the body's root link frame.
 
-    def __init__(self, client: Any, name: str, body_id: int, joints: Sequence[int],
-                 tool_link: int, gripper: Gripper, force: float, torque: float, gain: float):
+    The constraint corrects ``gain`` of its error per physics step (the fraction of a
+    tracking rate per second, so that the tool follows alike at any time step), as the
+    gantry's position control does; it is given its pose at every physics step.
+    """
+
+    every_step = True
+
+    def __init__(self, client: Any, name: str, body_id: int, gripper: Gripper,
+                 tool: tuple[Sequence[float], Sequence[float]], home: Sequence[float],
+                 reach: tuple[tuple[float, float], ...], force: float, gain: float):
         self.name = name
         self.body_id = body_id
         self.gripper = gripper
         self._client = client
-        self._joints = list(joints)
-        self._tool_link = tool_link
-        self._forces = [force] * 3 + [torque] * 3
-        self._gain = gain
-        self._base = client.getBasePositionAndOrientation(body_id)
-        self._base_inverse = client.invertTransform(*self._base)
-        info = [client.getJointInfo(body_id, j) for j in self._joints[:3]]
-        self._lower = np.array([i[8] for i in info])
-        self._upper = np.array([i[9] for i in info])
+        self._home = np.asarray(home, float)
+        self._reach = reach
+        self._force, self._gain = force, gain
+        c = client
+        # Bullet's base frame is the root link's centre of mass: the tool in that frame.
+        inertial = c.getDynamicsInfo(body_id, -1)[3:5]
+        self._tool_in_base = c.multiplyTransforms(*c.invertTransform(*inertial), *tool)
+        self._base_in_tool = c.invertTransform(*self._tool_in_base)
+        position, orientation = self.tool_pose()
+        self._constraint = c.createConstraint(
+            body_id, -1, -1, -1, c.JOINT_FIXED, (0.0, 0.0, 0.0), self._tool_in_base[0],
+            position, self._tool_in_base[1], orientation)
         self._target: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+        self.servo(position, orientation)
 
     def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        state = self._client.getLinkState(self.body_id, self._tool_link,
-                                          computeForwardKinematics=True)
-        return np.asarray(state[4]), np.asarray(state[5])
-
-    def joint_values(self, position: Sequence[float],
-                     orientation: Sequence[float]) -> list[float]:
-        """The six joint values that put the tool at the pose (angles nearest the joints'
-        values now, so the tool turns the short way)."""
         c = self._client
-        local, turn = c.multiplyTransforms(*self._base_inverse, position, orientation)
-        r = np.asarray(c.getMatrixFromQuaternion(turn)).reshape(3, 3)
-        # R = Rz(yaw) Rx(roll) Ry(pitch)
-        roll = math.asin(max(-1.0, min(1.0, r[2, 1])))
-        pitch = math.atan2(-r[2, 0], r[2, 2])
-        yaw = math.atan2(-r[0, 1], r[1, 1])
-        now = [s[0] for s in c.getJointStates(self.body_id, self._joints[3:])]
-        angles = [a + 2 * math.pi * round((b - a) / (2 * math.pi))
-                  for a, b in zip((yaw, roll, pitch), now)]
-        return [*local, *angles]
+        base = c.getBasePositionAndOrientation(self.body_id)
+        position, orientation = c.multiplyTransforms(*base, *self._tool_in_base)
+        return np.asarray(position), np.asarray(orientation)
 
     def check_reach(self, position: Sequence[float], orientation: Sequence[float],
                     what: str) -> None:
-        values = np.asarray(self.joint_values(position, orientation)[:3])
-        outside = np.maximum(self._lower - values, values - self._upper).max()
+        offset = np.asarray(position, float) - self._home
+        low = np.array([-self._reach[0][1], -self._reach[1][1], self._reach[2][0]])
+        high = np.array([self._reach[0][1], self._reach[1][1], self._reach[2][1]])
+        outside = float(np.maximum(low - offset, offset - high).max())
         if outside > 0:
-            raise _unreachable(self.name, what, position, float(outside), 0.0)
+            raise _unreachable(self.name, what, position, outside, 0.0)
 
     def servo(self, position: Sequence[float], orientation: Sequence[float]) -> None:
         target = (tuple(position), tuple(orientation))
         if target == self._target:
             return
         self._target = target
-        values = self.joint_values(position, orientation)
-        self._client.setJointMotorControlArray(
-            self.body_id, self._joints, self._client.POSITION_CONTROL, targetPositions=values,
-            forces=self._forces, positionGains=[self._gain] * 6)
+        self._client.changeConstraint(self._constraint, target[0], target[1],
+                                      maxForce=self._force, erp=self._gain)
 
 
 class Arm(Manipulator):
