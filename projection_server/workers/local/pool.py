@@ -3,8 +3,9 @@
 Modelled on Gymnasium's ``AsyncVectorEnv``: each worker is a process of an explicit
 multiprocessing context (``forkserver`` by default: the parent hosts rclpy and Prolog and
 must never be forked) that keeps one warm DIRECT-mode PyBullet client
-(:mod:`projection_server.workers.process`), and answers every command with
-``(result, ok)``; exceptions travel back as :class:`ProjectionError`. Every wait in the
+(:mod:`projection_server.workers.process`), and answers every command with a named message
+that carries ``result`` and ``ok`` (:mod:`projection_server.workers.messages`); exceptions
+travel back as :class:`ProjectionError`. Every wait in the
 parent has a time limit. A worker that crashes or runs over its projection's time limit is
 terminated, its projection fails with kind ``worker_crashed`` or ``timeout``, and a new
 worker is started at once, ready for the next projection. Workers start with the pool, so
@@ -42,6 +43,8 @@ from typing import Any, NoReturn, TYPE_CHECKING
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.base import BackendBase
+from projection_server.workers.messages import (Close, LeafResult, Project, Result, Tree,
+                                                TreeEnded)
 from projection_server.workers.process import worker_main
 
 _log = logging.getLogger(__name__)  # the node forwards it to /rosout
@@ -317,7 +320,7 @@ class _Slot:
         try:
             self._ensure_worker()
             try:
-                self._conn.send(('tree', [(r.job, str(b)) for r, b in zip(requests, bags)]))
+                self._conn.send(Tree([(r.job, str(b)) for r, b in zip(requests, bags)]))
             except OSError:   # the worker died while idle
                 self._died(what)
             # Each projection of a tree has its limit from the end of the one before.
@@ -331,7 +334,7 @@ class _Slot:
                         other = (request, tmp / store.name(request.job, request.key),
                                  time.monotonic() + request.timeout)
                         self.requests = [*self.requests, request]
-                        self._conn.send(('project', (request.job, str(other[1]))))
+                        self._conn.send(Project(request.job, str(other[1])))
                 limit = other[2] if other is not None else deadline
                 ready = wait([self._conn, self._process.sentinel, self._wake_reader],
                              timeout=max(0.0, limit - time.monotonic()))
@@ -360,16 +363,16 @@ class _Slot:
                     message = None
                 if message is None:
                     self._died(what)
-                if len(message) == 2:   # the other query's projection
+                if isinstance(message, Result):   # the other query's projection
                     request, bag, _ = other
                     other = None
-                    self._settle(request, bag, *message)
-                else:
-                    index, result, ok = message
-                    if index is None:
-                        ended = True
-                        continue
-                    self._settle(left.pop(index), bags[index], result, ok)
+                    self._settle(request, bag, message.result, message.ok)
+                elif isinstance(message, LeafResult):
+                    self._settle(left.pop(message.index), bags[message.index], message.result,
+                                 message.ok)
+                elif isinstance(message, TreeEnded):
+                    ended = True
+                    continue
                 deadline = time.monotonic() + max(
                     (r.timeout for r in left.values()), default=pool.startup_timeout)
         except ProjectionError as exc:
@@ -412,7 +415,7 @@ class _Slot:
         what = f'projection {request.key[:12]}'
         try:
             try:
-                self._conn.send(('project', (request.job, str(bag))))
+                self._conn.send(Project(request.job, str(bag)))
             except OSError:   # the worker died while idle
                 self._died(what)
             timeline, ok = self._receive(request.timeout, what)
@@ -424,7 +427,7 @@ class _Slot:
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
-    def _receive(self, timeout: float, what: str) -> tuple[Any, bool]:
+    def _receive(self, timeout: float, what: str) -> Any:
         """The worker's answer within ``timeout`` s; on failure the worker is killed."""
         ready = wait([self._conn, self._process.sentinel], timeout=timeout)
         if not ready:
@@ -488,7 +491,7 @@ class _Slot:
     def _stop(self) -> None:
         if self._conn is not None and self._process is not None and self._process.is_alive():
             try:
-                self._conn.send(('close', None))
+                self._conn.send(Close())
                 self._process.join(5.0)
             except OSError:
                 pass

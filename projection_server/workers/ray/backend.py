@@ -51,6 +51,7 @@ from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import code_version
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.base import BackendBase
+from projection_server.workers.messages import LeafResult, TreeEnded
 from projection_server.workers.ray.actor import ProjectionActor
 
 if TYPE_CHECKING:
@@ -312,11 +313,11 @@ class RayBackend(BackendBase):
                 try:
                     message = ray.get(next(generator))
                 except StopIteration:   # ended without its last message
-                    message = (None, False, True)
+                    message = TreeEnded(False)
                 except Exception as exc:   # noqa: BLE001 (the dispatcher says what it was)
                     message = exc
                 self._events.put((generator, message))
-                if not isinstance(message, tuple) or message[0] is None:
+                if not isinstance(message, LeafResult):
                     return
 
         threading.Thread(target=follow, name='ray-tree-results', daemon=True).start()
@@ -439,9 +440,8 @@ class RayBackend(BackendBase):
             return
         if isinstance(value, Exception):
             _log.warning('a tree of projections failed: %s', _first_line(value))
-            value = (None, False, True)
-        index, result, ok = value
-        if index is None:
+            value = TreeEnded(False)
+        if isinstance(value, TreeEnded):
             with self._lock:
                 left, actor.tree, actor.ref = list(actor.tree.values()), None, None
                 self._again(left)
@@ -449,8 +449,9 @@ class RayBackend(BackendBase):
                     self._replace(actor)
                 self._events.put(None)
             return
+        index = value.index
         request = actor.tree[index]
-        result = self._result(request, result, ok)
+        result = self._result(request, value.result, value.ok)
         with self._lock:
             if actor.tree is None or actor.tree.pop(index, None) is not request:
                 return   # the tree was lost meanwhile
