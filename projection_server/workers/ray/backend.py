@@ -16,9 +16,15 @@ backend uses, so either backend answers from the bags of the other.
 
 Calls are made at once by the thread that decides them, under the backend's lock: a
 query's ``submit``, or the dispatcher after something ended. So a new job never waits for
-the dispatcher to start. The dispatcher sleeps until something ends or a time limit wakes
-it: each call's future, and a thread per tree that follows its results, put what ends on
-a queue that it waits on, and hands each answer to the policy.
+the dispatcher to start. One dispatcher thread waits for what ends with ``ray.wait`` over
+the outstanding calls and the trees' generators (Ray's documented way to wait for several
+generators without a thread each), with a timeout up to the next time limit, and hands
+each answer to the policy. ``ray.wait`` cannot be woken from outside, so while a
+``submit`` could make a call the dispatcher is not waiting for (an actor is idle, failed or
+starting, or a tree could be paused), it waits at most :data:`WATCH` s at a time: it then
+waits for that call too before it can end (a projection takes longer), and its time limit
+is kept to within that. With no call under way it sleeps on a condition that a new call
+notifies.
 
 Failures, chosen so that a projection that failed is reported, never silently run again:
 
@@ -36,12 +42,10 @@ Failures, chosen so that a projection that failed is reported, never silently ru
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import functools
 import logging
 import math
 import os
 from pathlib import Path
-import queue
 import shutil
 import threading
 import time
@@ -58,8 +62,7 @@ from projection_server.workers.messages import LeafResult, Ready, Result, TreeEn
 from projection_server.workers.ray.actor import ProjectionActor
 
 if TYPE_CHECKING:
-    from collections.abc import Callable, Mapping, Sequence
-    from concurrent.futures import Future
+    from collections.abc import Callable, Mapping
 
     from projection_server.simulation.job import Job
     from projection_server.settings import Settings
@@ -67,11 +70,13 @@ if TYPE_CHECKING:
     from projection_server.workers.base import Worker
     from projection_server.workers.requests import Request
 
-__all__ = ['RayBackend', 'connect']
+__all__ = ['RayBackend', 'WATCH', 'connect']
 
 _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
 LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB each
+# s: the longest wait while a submit could make a call the dispatcher does not wait for
+WATCH = 0.1
 
 
 @dataclass(eq=False)
@@ -86,6 +91,14 @@ class _Actor:
     calls: dict[Any, Request] = field(default_factory=dict)
     stream: Any = None
     info: dict[str, Any] | None = None
+
+    def waitables(self) -> list[Any]:
+        """What the dispatcher waits for of this actor."""
+        found = [self.ready_call] if self.ready_call is not None else []
+        found.extend(self.calls)
+        if self.stream is not None:
+            found.append(self.stream)
+        return found
 
 
 def connect(address: str, workers: int) -> Callable[[], None] | None:
@@ -165,9 +178,7 @@ class RayBackend(BackendBase):
         self._remote = ray.remote(ProjectionActor).options(
             num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD',
             max_concurrency=2)
-        # What wakes the dispatcher: (a call or a tree's generator, what gives its answer)
-        # when one ends or a tree's projection does; None when there may be new work.
-        self._events: queue.SimpleQueue[tuple[Any, Any] | None] = queue.SimpleQueue()
+        self._called = threading.Condition(self._lock)   # a call was made, or closed
         self._actors = [_Actor(None) for _ in self._roster]
         with self._lock:
             for actor in self._actors:
@@ -197,12 +208,6 @@ class RayBackend(BackendBase):
         """Run ``job`` (or find its bag) and return the bag's path."""
         return self.submit(job, timeout).result().bag
 
-    def submit_all(self, jobs: Sequence[Job], timeout: float,
-                   owner: str | None = None) -> list[Future[ProjectionResult]]:
-        futures = super().submit_all(jobs, timeout, owner)
-        self._events.put(None)   # a time limit of a starting actor may count now
-        return futures
-
     def close(self) -> None:
         """Kill the actors; unfinished projections fail with kind ``pool_closed``."""
         with self._lock:
@@ -214,7 +219,7 @@ class RayBackend(BackendBase):
                     ErrorKind.POOL_CLOSED, 'the projection backend was closed'))
             for actor in self._actors:
                 _kill(actor.handle, restart=False)
-            self._events.put(None)
+            self._called.notify_all()
         self._thread.join(30.0)
         if self._stop_ray is not None:
             self._stop_ray()
@@ -226,15 +231,16 @@ class RayBackend(BackendBase):
             self._project(actor, worker.request)
         else:
             leaves = [worker.leaves[i] for i in sorted(worker.leaves)]
-            actor.stream = self._follow(actor.handle.tree.options(num_returns='streaming').remote(
-                [(r.job, self.store.name(r.job, r.key)) for r in leaves]))
+            actor.stream = actor.handle.tree.options(num_returns='streaming').remote(
+                [(r.job, self.store.name(r.job, r.key)) for r in leaves])
+        self._called.notify()
 
     def _send_other(self, worker: Worker) -> None:
         self._project(self._actors[worker.index], worker.other)
+        self._called.notify()
 
     def _project(self, actor: _Actor, request: Request) -> None:
-        call = self._watch(actor.handle.project.remote(
-            request.job, self.store.name(request.job, request.key)))
+        call = actor.handle.project.remote(request.job, self.store.name(request.job, request.key))
         actor.calls[call] = request
 
     def _halt(self, worker: Worker) -> None:
@@ -244,6 +250,7 @@ class RayBackend(BackendBase):
         actor = self._actors[worker.index]
         _kill(actor.handle, restart=False)
         self._new_actor(actor)
+        self._called.notify()
 
     def _new_actor(self, actor: _Actor) -> None:
         """A new actor process in ``actor``'s place (with the lock)."""
@@ -254,30 +261,8 @@ class RayBackend(BackendBase):
     def _restarting(self, actor: _Actor) -> None:
         """Wait for the actor to be ready: Ray restarts it after a death (with the lock)."""
         actor.info = None
-        actor.ready_call = self._watch(actor.handle.ready.options(max_task_retries=-1).remote())
+        actor.ready_call = actor.handle.ready.options(max_task_retries=-1).remote()
         actor.started = time.monotonic()
-
-    def _watch(self, call: Any) -> Any:
-        """Have ``call`` (an ObjectRef) wake the dispatcher when it ends; returns it."""
-        call.future().add_done_callback(lambda future: self._events.put((call, future.result)))
-        return call
-
-    def _follow(self, generator: Any) -> Any:
-        """Have each message of a tree's ``generator`` wake the dispatcher, from a thread
-        that waits for them; returns it."""
-        def follow() -> None:
-            while True:
-                try:
-                    message = ray.get(next(generator))
-                except Exception as exc:   # noqa: BLE001 (the dispatcher says what it was)
-                    self._events.put((generator, functools.partial(_raise, exc)))
-                    return
-                self._events.put((generator, lambda message=message: message))
-                if not isinstance(message, LeafResult):
-                    return
-
-        threading.Thread(target=follow, name='ray-tree-results', daemon=True).start()
-        return generator
 
     # -- the dispatcher thread ------------------------------------------------------------
     def _dispatch(self) -> None:
@@ -290,17 +275,17 @@ class RayBackend(BackendBase):
                     for worker in self._roster:
                         self._overdue(worker, now)
                     self._late_start(now)
+                    watched = {waitable: (actor, worker)
+                               for actor, worker in zip(self._actors, self._roster)
+                               for waitable in actor.waitables()}
                     until = self._until() - now
-                try:
-                    events = [self._events.get(
-                        timeout=None if until == math.inf else max(0.0, until))]
-                    while not self._events.empty():
-                        events.append(self._events.get_nowait())
-                except queue.Empty:
-                    events = []
-                for event in events:
-                    if event is not None:
-                        self._handle(*event)
+                    if not watched:
+                        self._called.wait(None if until == math.inf else max(0.0, until))
+                        continue
+                ready, _ = ray.wait(list(watched), num_returns=1,
+                                    timeout=None if until == math.inf else max(0.0, until))
+                for waitable in ready:
+                    self._handle(*watched[waitable], waitable)
         finally:
             with self._lock:
                 self._fail_all(ProjectionError(ErrorKind.POOL_CLOSED,
@@ -308,10 +293,15 @@ class RayBackend(BackendBase):
 
     def _until(self) -> float:
         """When the dispatcher must look again at the latest (with the lock)."""
+        until = self._next_deadline()
         starting = [a.started + self.startup_timeout
                     for a, w in zip(self._actors, self._roster)
                     if w.state is WorkerState.STARTING and self._queue]
-        return min([self._next_deadline(), *starting])
+        until = min([until, *starting])
+        if any(w.state in (WorkerState.IDLE, WorkerState.FAILED, WorkerState.STARTING)
+               or w.pausable_owners() is not None for w in self._roster):
+            until = min(until, time.monotonic() + WATCH)   # a submit may make a call
+        return until
 
     def _late_start(self, now: float) -> None:
         """Fail a queued job for each actor that could not be placed or started in time
@@ -324,22 +314,15 @@ class RayBackend(BackendBase):
                     ' (are there free CPUs in the cluster?)'))
                 actor.started = now
 
-    def _handle(self, source: Any, get: Callable[[], Any]) -> None:
-        """What ended: ``source`` (a call, or a tree's generator) of one of the actors, if
-        it is still theirs; ``get`` gives its answer."""
-        with self._lock:
-            found = next(((a, w) for a, w in zip(self._actors, self._roster)
-                          if source is a.stream or source in a.calls
-                          or (a.ready_call is not None and source == a.ready_call)), None)
-        if found is None:
-            return   # of an actor lost or replaced meanwhile
-        actor, worker = found
-        if source is actor.stream:
-            self._tree_message(actor, worker, source, get)
-        elif source in actor.calls:
-            self._call_ended(actor, worker, source, get)
-        else:
-            self._readiness(actor, worker, source, get)
+    def _handle(self, actor: _Actor, worker: Worker, waitable: Any) -> None:
+        """What ended of ``actor``'s (``worker``'s): its readiness call, a ``project`` call,
+        or the next message of its tree (ready: taking it does not block)."""
+        if waitable is actor.stream:
+            self._tree_message(actor, worker, waitable, lambda: ray.get(next(waitable)))
+        elif waitable in actor.calls:
+            self._call_ended(actor, worker, waitable, lambda: ray.get(waitable))
+        elif actor.ready_call is not None and waitable == actor.ready_call:
+            self._readiness(actor, worker, waitable, lambda: ray.get(waitable))
 
     def _readiness(self, actor: _Actor, worker: Worker, call: Any,
                    get: Callable[[], Ready]) -> None:
@@ -461,10 +444,6 @@ class RayBackend(BackendBase):
             shutil.rmtree(tmp, ignore_errors=True)
         timeline['meta']['bag'] = str(final)
         return ProjectionResult(str(final), timeline)
-
-
-def _raise(exc: BaseException) -> Any:
-    raise exc
 
 
 def _kill(handle: Any, restart: bool) -> None:
