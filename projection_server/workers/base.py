@@ -10,7 +10,8 @@ whose state is named (:class:`WorkerState`):
   share their first steps, :mod:`projection_server.simulation.branching`) are taken with
   it, up to a fair share per worker of what is left to do, and run as one tree.
 * **Pausing a tree.** While no worker is idle, a worker whose tree has projections left
-  pauses it for a queued projection of other owners (``TREE_PAUSED``).
+  pauses it for a queued projection of owners other than those of its unfinished ones
+  (``TREE_PAUSED``); a starting worker counts as busy.
 * **Time limits.** A projection's limit counts from when its worker takes it; a tree's
   restarts when one of its projections ends, and with the longest limit of those left; the
   projection a tree is paused for has its own, and the pause does not count against the
@@ -22,8 +23,10 @@ whose state is named (:class:`WorkerState`):
   worker that could not start fails the next projection it is given with why, and starts
   again.
 * **Cancelling.** A queued projection is dropped; a running one stops its worker; a tree
-  stops once none of its unfinished projections is wanted; the projection a tree is
-  paused for finishes (stopping it would stop the tree).
+  stops once none of its unfinished projections is wanted (a paused one, once the
+  projection it is paused for has ended); that projection finishes (stopping it would stop
+  the tree). Dropping an owner's projections (``cancel(owner, running=False)``) takes the
+  queued ones and those a tree with more than one left has not made.
 * **Replacement.** PyBullet keeps a little memory per world it has built, so a worker is
   replaced by a fresh one after ``max_projections`` projections, as soon as it is idle.
 
@@ -33,10 +36,19 @@ projection its tree is paused for (:meth:`_send_other`), how a worker is stopped
 (:meth:`_started`, :meth:`_start_failed`, :meth:`_answered`, :meth:`_leaf_answered`,
 :meth:`_tree_ended`, :meth:`_lost`, :meth:`_overdue`), with the lock held.
 
-    STARTING --> IDLE <--> RUNNING, RUNNING_TREE <--> TREE_PAUSED
-       |  ^                 |  (a time limit or a cancel) --> STOPPING
-       v  |                 |  (died) ----------------------> STARTING
-      FAILED                |  (max_projections, when idle) -> STARTING
+    =============  =====================  ===================================================
+    state          runs                   next
+    =============  =====================  ===================================================
+    STARTING                              IDLE (started), FAILED (could not)
+    FAILED                                STARTING (a projection given to it fails with why)
+    IDLE                                  RUNNING or RUNNING_TREE (it takes work)
+    RUNNING        ``request``            IDLE when answered (STARTING: replaced)
+    RUNNING_TREE   ``leaves`` left        TREE_PAUSED; IDLE when it ends (STARTING: replaced)
+    TREE_PAUSED    ``leaves``, ``other``  RUNNING_TREE when ``other`` ends; RUNNING
+                                          (``other``) if the tree ends first
+    (those three)                         STOPPING (a time limit, a cancel); STARTING (died)
+    STOPPING       what it ran            STARTING once its end is seen
+    =============  =====================  ===================================================
 """
 
 from __future__ import annotations
