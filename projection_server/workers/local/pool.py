@@ -238,16 +238,15 @@ class _Slot:
         pool, worker, store = self._pool, self.worker, self._pool.store
         with pool._lock:
             request, leaves, taken = worker.request, dict(worker.leaves), worker.taken
-        tmp = store.tmp_dir()
-        # A bag is written under its final name, which is also the name of its storage file
-        # inside: identical projections give byte-identical bags.
-        bags = {i: tmp / store.name(r.job, r.key) for i, r in leaves.items()}
+        tmps: list[Path] = []   # the tree's temporary directory, and each projection's
         projecting: tuple[Request, Path] | None = None   # a Project sent, not answered
         if request is not None:
-            projecting = (request, tmp / store.name(request.job, request.key))
+            projecting = self._projecting(request, tmps)
             first: Command = Project(request.job, str(projecting[1]))
             what = f'projection {request.key[:12]}'
         else:
+            tmps.append(store.tmp_dir())
+            bags = {i: tmps[0] / store.name(r.job, r.key) for i, r in leaves.items()}
             first = Tree([(r.job, str(bags[i])) for i, r in leaves.items()])
             what = f'a tree of {len(leaves)} projections from {leaves[0].key[:12]}'
         try:
@@ -268,9 +267,8 @@ class _Slot:
                     state, deadline = worker.state, worker.deadline
                     moved_on = worker.taken != taken
                     if state is WorkerState.TREE_PAUSED and projecting is None:
-                        other = worker.other
-                        projecting = (other, tmp / store.name(other.job, other.key))
-                        command = Project(other.job, str(projecting[1]))
+                        projecting = self._projecting(worker.other, tmps)
+                        command = Project(worker.other.job, str(projecting[1]))
                 if state is WorkerState.STOPPING:
                     self._end('stopped')
                     return
@@ -291,6 +289,7 @@ class _Slot:
                     answered, bag = projecting
                     projecting = None
                     result = self._published(bag, message)
+                    shutil.rmtree(bag.parent, ignore_errors=True)   # before it is answered
                     with pool._lock:
                         pool._answered(worker, answered, result)
                 elif isinstance(message, LeafResult):
@@ -304,7 +303,16 @@ class _Slot:
             _log.error('%s failed: %s: %s', what, type(exc).__name__, exc)
             self._end(f'{type(exc).__name__}: {exc}')
         finally:
-            shutil.rmtree(tmp, ignore_errors=True)
+            for tmp in tmps:
+                shutil.rmtree(tmp, ignore_errors=True)
+
+    def _projecting(self, request: Request, tmps: list[Path]) -> tuple[Request, Path]:
+        """``request`` and the path of its bag, in a temporary directory of its own (added
+        to ``tmps``). A bag is written under its final name, which is also the name of its
+        storage file inside: identical projections give byte-identical bags."""
+        store = self._pool.store
+        tmps.append(store.tmp_dir())
+        return request, tmps[-1] / store.name(request.job, request.key)
 
     def _published(self, bag: Path, message: Result | LeafResult
                    ) -> ProjectionResult | ProjectionError:
