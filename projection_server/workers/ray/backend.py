@@ -279,9 +279,11 @@ class RayBackend(BackendBase):
                                for actor, worker in zip(self._actors, self._roster)
                                for waitable in actor.waitables()}
                     until = self._until() - now
-                    if not watched:
+                    if not watched:   # a new call notifies
                         self._called.wait(None if until == math.inf else max(0.0, until))
                         continue
+                    if self._may_call():
+                        until = min(until, WATCH)
                 ready, _ = ray.wait(list(watched), num_returns=1,
                                     timeout=None if until == math.inf else max(0.0, until))
                 for waitable in ready:
@@ -297,11 +299,13 @@ class RayBackend(BackendBase):
         starting = [a.started + self.startup_timeout
                     for a, w in zip(self._actors, self._roster)
                     if w.state is WorkerState.STARTING and self._queue]
-        until = min([until, *starting])
-        if any(w.state in (WorkerState.IDLE, WorkerState.FAILED, WorkerState.STARTING)
-               or w.pausable_owners() is not None for w in self._roster):
-            until = min(until, time.monotonic() + WATCH)   # a submit may make a call
-        return until
+        return min([until, *starting])
+
+    def _may_call(self) -> bool:
+        """Whether a submit may make a call (or count a start-up's time limit) that the
+        dispatcher does not wait for yet (with the lock)."""
+        return any(w.state in (WorkerState.IDLE, WorkerState.FAILED, WorkerState.STARTING)
+                   or w.pausable_owners() is not None for w in self._roster)
 
     def _late_start(self, now: float) -> None:
         """Fail a queued job for each actor that could not be placed or started in time
