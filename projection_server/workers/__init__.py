@@ -4,9 +4,13 @@ Map of the package:
 
 * :mod:`.backend`: :class:`WorkerBackend`, the interface the projection layer talks to
   (submit a job -> future of a :class:`ProjectionResult`; cancel; close).
-* :mod:`.base`: what every backend shares (bag store, requests, ``submit``, ``cancel``).
+* :mod:`.base`: what every backend shares (bag store, requests, ``submit``, ``cancel``)
+  and the scheduling policy: one record per worker in a named state (``WorkerState``),
+  fair turns, trees, pausing, time limits, failures, replacement. Backends only transport.
 * :mod:`.bag_store`: the bag directory shared by every backend (names, retention).
 * :mod:`.requests`: the projections asked for, by job key and owner (every backend's).
+* :mod:`.process`: the worker process of both backends (a warm simulator, its trees).
+* :mod:`.messages`: the named commands and answers on a worker process's pipe.
 * :mod:`.warm_up`: the throw-away projection a worker runs before its first job.
 * :mod:`.local`: the ``local`` backend, supervised worker processes on this machine.
 * :mod:`.ray`: the ``ray`` backend, Ray actors on this machine or a Ray cluster.

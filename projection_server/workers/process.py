@@ -6,15 +6,18 @@ whose process has threads of its own and so must not fork, starts it as a comman
 
 Start-up pays once what every projection would otherwise pay again: imports, the PyBullet
 connection, message type registration and asset parsing, and a throw-away projection for
-what only a first projection sets up (:mod:`projection_server.workers.warm_up`); the ready
-message says how long that took. A ``project`` command is answered with
-``(result, ok)``; a projection's result is its timeline, made from the samples the worker
-has in memory (:mod:`projection_server.workers.run`). A ``tree`` command (projections
-that share their first steps, :mod:`projection_server.simulation.branching`) is answered
-with ``(index, result, ok)`` for each projection as it ends, then ``(None, complete, True)``,
-where ``complete`` is False if a process of the tree crashed before it reported. While a tree
-runs, the worker also takes ``project`` commands (another query's projection): it pauses
-the tree (SIGSTOP to its process group), answers ``(result, ok)`` and continues the tree.
+what only a first projection sets up (:mod:`projection_server.workers.warm_up`); the
+:class:`~.messages.Ready` message says how long that took. The messages are named
+(:mod:`projection_server.workers.messages`). A :class:`~.messages.Project` command is
+answered with a :class:`~.messages.Result`; a projection's result is its timeline, made from
+the samples the worker has in memory (:mod:`projection_server.workers.run`). A
+:class:`~.messages.Tree` command (projections that share their first steps,
+:mod:`projection_server.simulation.branching`) is answered with a
+:class:`~.messages.LeafResult` for each projection as it ends, then a
+:class:`~.messages.TreeEnded`. While a tree runs, the worker also takes
+:class:`~.messages.Project` commands (another query's projection): it pauses the tree
+(SIGSTOP to its process group), answers with a :class:`~.messages.Result` and continues the
+tree.
 """
 
 from __future__ import annotations
@@ -25,12 +28,14 @@ import traceback
 from typing import Any
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.workers.messages import (Close, LeafResult, Project, Ready, Result,
+                                                Start, Tree, TreeEnded)
 
 __all__ = ['main', 'worker_main']
 
 
 def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
-    """Entry point of a worker process: answers commands with ``(result, ok)``."""
+    """Entry point of a worker process: sends :class:`Ready`, then answers commands."""
     import signal
 
     # Ctrl-C belongs to the parent, which stops its workers itself.
@@ -48,44 +53,44 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
         parsed = Settings.from_dict(settings)
         simulator = Simulator()
     except Exception as exc:
-        conn.send((ProjectionError(ErrorKind.SIMULATION_FAILED, f'worker start-up: {exc}'), False))
+        conn.send(Ready(ProjectionError(ErrorKind.SIMULATION_FAILED, f'worker start-up: {exc}'),
+                        False))
         return
     try:
         from projection_server.workers.warm_up import warm_up
 
-        conn.send(({'warm_up': warm_up(simulator, parsed) if warm else None}, True))
+        conn.send(Ready({'warm_up': warm_up(simulator, parsed) if warm else None}, True))
         while True:
             try:
-                command, payload = conn.recv()
+                command = conn.recv()
             except (EOFError, OSError):
                 return
-            if command == 'close':
+            if isinstance(command, Close):
                 return
-            if command == 'tree':
-                _tree(conn, simulator, payload, parsed)
+            if isinstance(command, Tree):
+                _tree(conn, simulator, command.leaves, parsed)
             else:
-                conn.send(_project(simulator, payload, parsed))
+                conn.send(_project(simulator, command, parsed))
     finally:
         simulator.close()
 
 
-def _project(simulator: Any, payload: tuple[Any, str], settings: Any) -> tuple[Any, bool]:
+def _project(simulator: Any, command: Project, settings: Any) -> Result:
     from projection_server.workers.run import project
 
     try:
-        job, path = payload
-        return project(simulator, job, settings, Path(path)), True
+        return Result(project(simulator, command.job, settings, Path(command.bag)), True)
     except ProjectionError as exc:
-        return exc, False
+        return Result(exc, False)
     except Exception as exc:
-        return ProjectionError(ErrorKind.SIMULATION_FAILED,
-                               f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'
-                               ), False
+        return Result(ProjectionError(
+            ErrorKind.SIMULATION_FAILED,
+            f'{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}'), False)
 
 
 def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: Any) -> None:
-    """Run a tree; answer each leaf as it ends and, meanwhile, ``project`` commands (of
-    other queries), for which the tree is paused."""
+    """Run a tree; answer each leaf as it ends and, meanwhile, :class:`Project` commands
+    (of other queries), for which the tree is paused."""
     from multiprocessing.connection import wait
     import pickle
     import signal
@@ -102,7 +107,7 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
     def report(index: int, result: Any, ok: bool) -> None:   # in the leaf's process
         if ok:   # the finished projection: its timeline, from the records it has in memory
             result = timeline_of(result, leaves[index][1])
-        ended(index).write_bytes(pickle.dumps((result, ok)))
+        ended(index).write_bytes(pickle.dumps(LeafResult(index, result, ok)))
         os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 
     try:
@@ -110,7 +115,7 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
     except Exception:   # e.g. fork failed: the pool runs the projections one by one
         os.close(reader)
         os.close(writer)
-        conn.send((None, False, True))
+        conn.send(TreeEnded(False))
         return
     os.close(writer)   # the tree holds it: the pipe ends when the whole tree has
     with os.fdopen(reader, 'rb', buffering=0) as ends:
@@ -118,14 +123,14 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
         while True:
             ready = wait([conn, ends])
             if conn in ready:
-                command, job = conn.recv()
-                if command != 'project':   # 'close': the tree goes with the worker
+                command = conn.recv()
+                if not isinstance(command, Project):   # Close: the tree goes with the worker
                     os.killpg(pid, signal.SIGKILL)
                     os.waitpid(pid, 0)
                     raise SystemExit(0)
                 _signal_tree(pid, signal.SIGSTOP)
                 try:
-                    conn.send(_project(simulator, job, settings))
+                    conn.send(_project(simulator, command, settings))
                 finally:
                     _signal_tree(pid, signal.SIGCONT)
             if ends in ready:
@@ -136,10 +141,10 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
                 while len(pending) >= 4:
                     index = int.from_bytes(pending[:4], 'little')
                     pending = pending[4:]
-                    result, ok = pickle.loads(ended(index).read_bytes())
+                    message = pickle.loads(ended(index).read_bytes())
                     ended(index).unlink()
-                    conn.send((index, result, ok))
-    conn.send((None, os.waitpid(pid, 0)[1] == 0, True))
+                    conn.send(message)
+    conn.send(TreeEnded(os.waitpid(pid, 0)[1] == 0))
 
 
 def _signal_tree(pid: int, signum: int) -> None:
@@ -152,8 +157,8 @@ def _signal_tree(pid: int, signum: int) -> None:
 
 def main() -> None:
     """``python -m projection_server.workers.process FD PARENT``: :func:`worker_main` on
-    the inherited socket ``FD``, whose first message is ``(settings, warm)``, in a process
-    that dies with its parent, pid ``PARENT``."""
+    the inherited socket ``FD``, whose first message is a :class:`Start`, in a process that
+    dies with its parent, pid ``PARENT``."""
     import sys
     from multiprocessing.connection import Connection
 
@@ -164,10 +169,11 @@ def main() -> None:
         return
     conn = Connection(fd)
     try:
-        settings, warm = conn.recv()
+        start = conn.recv()
     except (EOFError, OSError):
         return
-    worker_main(conn, settings, warm)
+    if isinstance(start, Start):
+        worker_main(conn, start.settings, start.warm)
 
 
 if __name__ == '__main__':

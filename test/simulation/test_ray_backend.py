@@ -200,22 +200,24 @@ def test_another_querys_projection_runs_while_the_tree_waits_and_changes_no_byte
 def test_only_a_tree_with_projections_left_is_paused_for_another_querys(make_scenario):
     from concurrent.futures import Future
 
-    from projection_server.workers.ray.backend import _Actor, _pausable
+    from projection_server.workers.base import Worker, WorkerState
     from projection_server.workers.requests import Request
 
     def request(owner):
         return Request(job(make_scenario, 5.0), 'key', 60.0, Future(), {owner})
 
-    actor = _Actor(handle=None, ref='a tree', tree={0: request('q/grid'), 1: request('q/b')})
-    assert _pausable(actor) == {'q/grid', 'q/b'}
+    worker = Worker(0, WorkerState.RUNNING_TREE,
+                    leaves={0: request('q/grid'), 1: request('q/b')})
+    assert worker.pausable_owners() == {'q/grid', 'q/b'}
     # Its projections have all ended and its end is on its way: nothing to pause for,
     # and a projection started now would keep the actor from the next family's tree.
-    actor.tree = {}
-    assert _pausable(actor) is None
-    actor.tree = {1: request('q/b')}
-    actor.other = request('q/quick')
-    assert _pausable(actor) is None   # it runs another query's projection already
-    assert _pausable(_Actor(handle=None, ref='one projection', request=request('q'))) is None
+    worker.leaves = {}
+    assert worker.pausable_owners() is None
+    worker.leaves = {1: request('q/b')}
+    worker.state, worker.other = WorkerState.TREE_PAUSED, request('q/quick')
+    assert worker.pausable_owners() is None   # it runs another query's projection already
+    one = Worker(0, WorkerState.RUNNING, request=request('q'))
+    assert one.pausable_owners() is None
 
 
 def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(ray_backend):

@@ -1,17 +1,30 @@
 """The ``ray`` backend: one Ray actor per worker, each with a warm simulator.
 
 For when one machine is not enough: the actors (:mod:`.actor`) may run on any node of a Ray
-cluster. One dispatcher thread hands each idle actor one job at a time, or, as the ``local``
-backend does, the queued jobs of one family up to a fair share per actor, run as a tree
-(:mod:`projection_server.simulation.branching`) whose projections come back one by one as
-they end. The dispatcher sleeps until a result, a new job or a time limit wakes it: each
-call's future, and a thread per tree that follows its results, put what ends on a queue
-that it waits on. A job's time limit counts from when its actor takes it, in a tree from
-when the one before it ended. As in the ``local`` backend, queued jobs are taken by owner
-(query) in turn, and while every actor is busy, an actor running a tree pauses it for
-another query's projection. Finished bags come back as bytes and are published into this
-process's :class:`~projection_server.workers.bag_store.BagStore` under the same job key as
-the local backend uses, so either backend answers from the bags of the other.
+cluster. What each actor does next is decided by
+:class:`~projection_server.workers.base.BackendBase`, as for the ``local`` backend (fair
+turns by owner, a family's queued jobs up to a fair share per actor run as a tree, a tree
+paused for another query's projection while no actor is idle, time limits, what a crash or
+a cancel fails, replacement after ``max_projections``). This module carries it out with
+Ray: a job is a ``project`` call; a tree (:mod:`projection_server.simulation.branching`) is
+a ``tree`` call whose messages stream back as its projections end
+(``num_returns='streaming'``); pausing a tree is a second ``project`` call beside it (the
+actor has two threads); stopping an actor is ``ray.kill``. Finished bags come back as bytes
+and are published into this process's
+:class:`~projection_server.workers.bag_store.BagStore` under the same job key as the local
+backend uses, so either backend answers from the bags of the other.
+
+Calls are made at once by the thread that decides them, under the backend's lock: a
+query's ``submit``, or the dispatcher after something ended. So a new job never waits for
+the dispatcher to start. One dispatcher thread waits for what ends with ``ray.wait`` over
+the outstanding calls and the trees' generators (Ray's documented way to wait for several
+generators without a thread each), with a timeout up to the next time limit, and hands
+each answer to the policy. ``ray.wait`` cannot be woken from outside, so while a
+``submit`` could make a call the dispatcher is not waiting for (an actor is idle, failed or
+starting, or a tree could be paused), it waits at most :data:`WATCH` s at a time: it then
+waits for that call too before it can end (a projection takes longer), and its time limit
+is kept to within that. With no call under way it sleeps on a condition that a new call
+notifies.
 
 Failures, chosen so that a projection that failed is reported, never silently run again:
 
@@ -23,26 +36,20 @@ Failures, chosen so that a projection that failed is reported, never silently ru
   call after a restart is the one call that waits through the restart;
 * a tree whose actor dies or runs over time is not failed as a whole, since it is not known
   which of its projections did it: those it had not finished run again one by one, each
-  with its own time limit (and so its own error), as in the ``local`` backend. A tree is
-  stopped by a cancel once none of its unfinished projections is wanted.
-
-PyBullet keeps a little memory per world it has built, so, as in the local backend, an
-actor is replaced by a fresh one after ``max_projections`` projections, while no job waits
-for it.
+  with its own time limit (and so its own error), as in the ``local`` backend.
 """
 
 from __future__ import annotations
 
-from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import logging
+import math
 import os
 from pathlib import Path
-import queue
 import shutil
 import threading
 import time
-from typing import Any, TYPE_CHECKING
+from typing import Any, ClassVar, TYPE_CHECKING
 
 import ray
 from ray.exceptions import RayActorError, RayError
@@ -50,7 +57,8 @@ from ray.exceptions import RayActorError, RayError
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import code_version
 from projection_server.workers.backend import ProjectionResult
-from projection_server.workers.base import BackendBase
+from projection_server.workers.base import BackendBase, WorkerState
+from projection_server.workers.messages import LeafResult, Ready, Result, TreeEnded
 from projection_server.workers.ray.actor import ProjectionActor
 
 if TYPE_CHECKING:
@@ -59,40 +67,38 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.settings import Settings
     from projection_server.workers.bag_store import Retention
+    from projection_server.workers.base import Worker
     from projection_server.workers.requests import Request
 
-__all__ = ['RayBackend', 'connect']
+__all__ = ['RayBackend', 'WATCH', 'connect']
 
 _log = logging.getLogger(__name__)  # the node forwards it to /rosout
 
 LOCAL_OBJECT_STORE = 100 * 1024 ** 2   # bytes: bags pass through it, a few MB each
+# s: the longest wait while a submit could make a call the dispatcher does not wait for
+WATCH = 0.1
 
 
-@dataclass
+@dataclass(eq=False)
 class _Actor:
-    """One actor and what it does now: starting (``ref`` is its readiness call), idle,
-    running ``request`` (``ref`` is the projection) or a tree of the requests ``tree`` (by
-    index; ``ref`` is its generator; those it has finished are removed) until
-    ``deadline``; and, while its tree waits, another query's projection ``other`` (its
-    call ``other_ref``) until ``other_deadline``."""
+    """One actor and its calls under way: its readiness call (while it starts), its
+    ``project`` calls by the request each runs (its job, or the one its tree is paused
+    for), and its tree's message generator."""
 
     handle: Any
-    ref: Any = None
-    request: Request | None = None
-    tree: dict[int, Request] | None = None
-    other: Request | None = None
-    other_ref: Any = None
-    other_deadline: float = 0.0
+    ready_call: Any = None
     started: float = 0.0
-    deadline: float = 0.0
-    timed_out: bool = False
-    projections: int = 0
+    calls: dict[Any, Request] = field(default_factory=dict)
+    stream: Any = None
     info: dict[str, Any] | None = None
-    error: ProjectionError | None = None
 
-    @property
-    def idle(self) -> bool:
-        return self.ref is None and self.other is None
+    def waitables(self) -> list[Any]:
+        """What the dispatcher waits for of this actor."""
+        found = [self.ready_call] if self.ready_call is not None else []
+        found.extend(self.calls)
+        if self.stream is not None:
+            found.append(self.stream)
+        return found
 
 
 def connect(address: str, workers: int) -> Callable[[], None] | None:
@@ -155,6 +161,8 @@ class RayBackend(BackendBase):
     context manager) to kill its actors and, if it started Ray, to stop Ray.
     """
 
+    _log: ClassVar[logging.Logger] = _log
+
     def __init__(self, bag_dir: str | os.PathLike[str], workers: int = 1,
                  settings: Settings | None = None,
                  retention: Retention | Mapping[str, Any] | None = None,
@@ -170,18 +178,14 @@ class RayBackend(BackendBase):
         self._remote = ray.remote(ProjectionActor).options(
             num_cpus=1, max_restarts=-1, max_task_retries=0, scheduling_strategy='SPREAD',
             max_concurrency=2)
-        # What wakes the dispatcher: (a call or a tree's generator, its outcome) when one
-        # ends or a tree's projection does; None when there may be new work.
-        self._events: queue.SimpleQueue[tuple[Any, Any] | None] = queue.SimpleQueue()
-        self._queue: deque[Request] = deque()
-        self._actors = [self._new_actor() for _ in range(workers)]
+        self._called = threading.Condition(self._lock)   # a call was made, or closed
+        self._actors = [_Actor(None) for _ in self._roster]
+        with self._lock:
+            for actor in self._actors:
+                self._new_actor(actor)
         self._thread = threading.Thread(target=self._dispatch, name='ray-projection-dispatch',
                                         daemon=True)
         self._thread.start()
-
-    @property
-    def workers(self) -> int:
-        return len(self._actors)
 
     def placement(self, timeout: float = 120.0) -> list[dict[str, Any]]:
         """Each actor's ``pid``, Ray ``node`` id and ``code_version``, once they are ready.
@@ -196,39 +200,13 @@ class RayBackend(BackendBase):
             if all(info is not None for info in infos):
                 return [dict(info) for info in infos]
             if time.monotonic() > deadline:
-                raise ProjectionError(ErrorKind.TIMEOUT, f'Ray actors not ready within {timeout:g} s')
+                raise ProjectionError(ErrorKind.TIMEOUT,
+                                      f'Ray actors not ready within {timeout:g} s')
             time.sleep(0.05)
-
-    def _enqueue(self, request: Request) -> None:
-        self._queue.append(request)
-        self._events.put(None)
 
     def run(self, job: Job, timeout: float) -> str:
         """Run ``job`` (or find its bag) and return the bag's path."""
         return self.submit(job, timeout).result().bag
-
-    def _droppable(self, request: Request) -> bool:
-        # A tree makes its projections one after the other: those it has not made yet are
-        # dropped like queued ones (see _stop).
-        return request in self._queue or any(
-            a.tree is not None and len(a.tree) > 1 and request in a.tree.values()
-            for a in self._actors)
-
-    def _stop(self, request: Request) -> bool:
-        for actor in self._actors:
-            if actor.other is request:
-                return True   # killing it would kill the tree it pauses: it finishes
-            if actor.request is request:
-                _kill(actor.handle, restart=True)   # Ray restarts it
-                return True
-            if actor.tree is not None and request in actor.tree.values():
-                # A tree stops once none of its unfinished projections is wanted any more.
-                if all(r.cancelled for r in actor.tree.values() if not r.future.done()):
-                    _kill(actor.handle, restart=True)
-                return True
-        if request in self._queue:
-            self._queue.remove(request)
-        return False
 
     def close(self) -> None:
         """Kill the actors; unfinished projections fail with kind ``pool_closed``."""
@@ -236,15 +214,55 @@ class RayBackend(BackendBase):
             if self._closed:
                 return
             self._closed = True
-            self._events.put(None)
             while self._queue:
                 self._requests.fail(self._queue.popleft(), ProjectionError(
                     ErrorKind.POOL_CLOSED, 'the projection backend was closed'))
             for actor in self._actors:
                 _kill(actor.handle, restart=False)
+            self._called.notify_all()
         self._thread.join(30.0)
         if self._stop_ray is not None:
             self._stop_ray()
+
+    # -- the transport (with the lock) ----------------------------------------------------
+    def _send(self, worker: Worker) -> None:
+        actor = self._actors[worker.index]
+        if worker.state is WorkerState.RUNNING:
+            self._project(actor, worker.request)
+        else:
+            leaves = [worker.leaves[i] for i in sorted(worker.leaves)]
+            actor.stream = actor.handle.tree.options(num_returns='streaming').remote(
+                [(r.job, self.store.name(r.job, r.key)) for r in leaves])
+        self._called.notify()
+
+    def _send_other(self, worker: Worker) -> None:
+        self._project(self._actors[worker.index], worker.other)
+        self._called.notify()
+
+    def _project(self, actor: _Actor, request: Request) -> None:
+        call = actor.handle.project.remote(request.job, self.store.name(request.job, request.key))
+        actor.calls[call] = request
+
+    def _halt(self, worker: Worker) -> None:
+        _kill(self._actors[worker.index].handle, restart=True)   # Ray restarts it
+
+    def _restart(self, worker: Worker) -> None:
+        actor = self._actors[worker.index]
+        _kill(actor.handle, restart=False)
+        self._new_actor(actor)
+        self._called.notify()
+
+    def _new_actor(self, actor: _Actor) -> None:
+        """A new actor process in ``actor``'s place (with the lock)."""
+        actor.handle = self._remote.remote(self.settings.to_dict())
+        actor.calls, actor.stream = {}, None
+        self._restarting(actor)
+
+    def _restarting(self, actor: _Actor) -> None:
+        """Wait for the actor to be ready: Ray restarts it after a death (with the lock)."""
+        actor.info = None
+        actor.ready_call = actor.handle.ready.options(max_task_retries=-1).remote()
+        actor.started = time.monotonic()
 
     # -- the dispatcher thread ------------------------------------------------------------
     def _dispatch(self) -> None:
@@ -253,300 +271,167 @@ class RayBackend(BackendBase):
                 with self._lock:
                     if self._closed:
                         break
-                    self._start_jobs()
-                    self._start_others()
-                    ends = self._ends()
-                try:
-                    events = [self._events.get(
-                        timeout=max(0.0, min(ends) - time.monotonic()) if ends else None)]
-                    while not self._events.empty():
-                        events.append(self._events.get_nowait())
-                except queue.Empty:
-                    events = []
-                for event in events:
-                    if event is not None:
-                        self._handle(*event)
-                self._check_deadlines()
+                    now = time.monotonic()
+                    for worker in self._roster:
+                        self._overdue(worker, now)
+                    self._late_start(now)
+                    watched = {waitable: (actor, worker)
+                               for actor, worker in zip(self._actors, self._roster)
+                               for waitable in actor.waitables()}
+                    until = self._until() - now
+                    if not watched:   # a new call notifies
+                        self._called.wait(None if until == math.inf else max(0.0, until))
+                        continue
+                    if self._may_call():
+                        until = min(until, WATCH)
+                ready, _ = ray.wait(list(watched), num_returns=1,
+                                    timeout=None if until == math.inf else max(0.0, until))
+                for waitable in ready:
+                    self._handle(*watched[waitable], waitable)
         finally:
             with self._lock:
-                for actor in self._actors:
-                    for request in _running(actor):
-                        self._requests.fail(request, ProjectionError(
-                            ErrorKind.POOL_CLOSED, 'the projection backend was closed'))
+                self._fail_all(ProjectionError(ErrorKind.POOL_CLOSED,
+                                               'the projection backend was closed'))
 
-    def _ends(self) -> list[float]:
-        """When :meth:`_check_deadlines` must look next (called with the lock)."""
-        ends = []
-        for actor in self._actors:
-            if _running(actor):
-                if not actor.timed_out:   # else killed: its end comes as an event
-                    ends.append(_deadline(actor))
-            elif actor.ref is not None and self._queue:   # starting, with jobs waiting
-                ends.append(actor.started + self.startup_timeout)
-        return ends
+    def _until(self) -> float:
+        """When the dispatcher must look again at the latest (with the lock)."""
+        until = self._next_deadline()
+        starting = [a.started + self.startup_timeout
+                    for a, w in zip(self._actors, self._roster)
+                    if w.state is WorkerState.STARTING and self._queue]
+        return min([until, *starting])
 
-    def _handle(self, source: Any, outcome: Any) -> None:
-        """What ended: ``source`` (a call, or a tree's generator) of one of the actors, if
-        it is still theirs; ``outcome`` is the call's future, or the tree's message."""
-        actor = next((a for a in self._actors if source is a.ref or source is a.other_ref),
-                     None)
-        if actor is None:
-            return   # of an actor lost or replaced meanwhile
-        if source is actor.other_ref:
-            self._finish_other(actor, outcome)
-        elif actor.tree is not None:
-            self._tree_message(actor, outcome)
-        else:
-            self._finish(actor, outcome)
+    def _may_call(self) -> bool:
+        """Whether a submit may make a call (or count a start-up's time limit) that the
+        dispatcher does not wait for yet (with the lock)."""
+        return any(w.state in (WorkerState.IDLE, WorkerState.FAILED, WorkerState.STARTING)
+                   or w.pausable_owners() is not None for w in self._roster)
 
-    def _watch(self, call: Any) -> Any:
-        """Have ``call`` (an ObjectRef) wake the dispatcher when it ends; returns it."""
-        call.future().add_done_callback(lambda future: self._events.put((call, future)))
-        return call
+    def _late_start(self, now: float) -> None:
+        """Fail a queued job for each actor that could not be placed or started in time
+        (e.g. no free CPU in the cluster; with the lock)."""
+        for actor, worker in zip(self._actors, self._roster):
+            if (worker.state is WorkerState.STARTING and self._queue
+                    and now - actor.started > self.startup_timeout):
+                self._requests.fail(self._queue.popleft(), ProjectionError(
+                    ErrorKind.TIMEOUT, f'no Ray worker started within {self.startup_timeout:g} s'
+                    ' (are there free CPUs in the cluster?)'))
+                actor.started = now
 
-    def _follow(self, generator: Any) -> Any:
-        """Have each message of a tree's ``generator`` wake the dispatcher, from a thread
-        that waits for them; returns it."""
-        def follow() -> None:
-            while True:
-                try:
-                    message = ray.get(next(generator))
-                except StopIteration:   # ended without its last message
-                    message = (None, False, True)
-                except Exception as exc:   # noqa: BLE001 (the dispatcher says what it was)
-                    message = exc
-                self._events.put((generator, message))
-                if not isinstance(message, tuple) or message[0] is None:
-                    return
+    def _handle(self, actor: _Actor, worker: Worker, waitable: Any) -> None:
+        """What ended of ``actor``'s (``worker``'s): its readiness call, a ``project`` call,
+        or the next message of its tree (ready: taking it does not block)."""
+        if waitable is actor.stream:
+            self._tree_message(actor, worker, waitable, lambda: ray.get(next(waitable)))
+        elif waitable in actor.calls:
+            self._call_ended(actor, worker, waitable, lambda: ray.get(waitable))
+        elif actor.ready_call is not None and waitable == actor.ready_call:
+            self._readiness(actor, worker, waitable, lambda: ray.get(waitable))
 
-        threading.Thread(target=follow, name='ray-tree-results', daemon=True).start()
-        return generator
-
-    def _start_jobs(self) -> None:
-        """Give queued requests to idle actors, by owner in turn, a family's together
-        (called with the lock)."""
-        self._queue = deque(r for r in self._queue if not r.future.done())
-        started = False
-        for actor in self._actors:
-            if not self._queue:
-                break
-            if not actor.idle:
-                continue
-            request = self._next(list(self._queue), self._queue)
-            if request is None:
-                break
-            if actor.error is not None:   # its start-up failed: this job says why, then retry
-                self._requests.fail(request, actor.error)
-                self._replace(actor)
-                continue
-            busy = sum(len(_running(a)) for a in self._actors)
-            taken, self._queue = self._with_family(request, self._queue, busy)
-            self._count(taken)
-            started = True
-            actor.started = time.monotonic()
-            actor.timed_out = False
-            if len(taken) == 1:
-                actor.request = request
-                actor.ref = self._watch(actor.handle.project.remote(
-                    request.job, self.store.name(request.job, request.key)))
-                actor.deadline = actor.started + request.timeout
-            else:
-                _log.debug('a tree of %d projections from %s', len(taken), request.key[:12])
-                actor.tree = dict(enumerate(taken))
-                actor.ref = self._follow(actor.handle.tree.options(
-                    num_returns='streaming').remote(
-                    [(r.job, self.store.name(r.job, r.key)) for r in taken]))
-                actor.deadline = actor.started + max(r.timeout for r in taken)
-        if started:
-            self._forget_owners([*self._queue, *(r for a in self._actors for r in _running(a))])
-
-    def _start_others(self) -> None:
-        """While every actor is busy, have an actor whose tree runs pause it for another
-        query's queued projection (called with the lock)."""
-        if not self._queue or any(a.idle for a in self._actors):
-            return
-        for actor in self._actors:
-            owners = _pausable(actor)
-            if owners is None:
-                continue
-            request = self._next([r for r in self._queue if not r.owners & owners],
-                                 self._queue)
-            if request is None:
-                continue
-            self._count([request])
-            actor.other = request
-            actor.other_ref = self._watch(actor.handle.project.remote(
-                request.job, self.store.name(request.job, request.key)))
-            actor.other_deadline = time.monotonic() + request.timeout
-
-    def _answer(self, actor: _Actor, future: Any) -> tuple[Any, bool] | None:
-        """``(result, ok)`` of ``actor``'s ended call (its ``future``); None if the actor
-        died (handled)."""
+    def _readiness(self, actor: _Actor, worker: Worker, call: Any,
+                   get: Callable[[], Ready]) -> None:
+        """``actor``'s readiness ``call`` has ended (``get`` gives its answer)."""
         try:
-            return future.result()
-        except RayActorError as exc:
-            self._lost(actor, exc)
-            return None
+            ready = get()
+        except RayActorError as exc:   # died for good while starting: the next job says so
+            error = ProjectionError(ErrorKind.WORKER_CRASHED,
+                                    f'a Ray worker could not start: {_first_line(exc)}')
         except RayError as exc:
-            return ProjectionError(ErrorKind.SIMULATION_FAILED, f'{type(exc).__name__}: {exc}'), False
-
-    def _finish_other(self, actor: _Actor, future: Any) -> None:
-        """The projection that paused ``actor``'s tree has ended."""
-        request = actor.other
-        answer = self._answer(actor, future)
-        if answer is None:
-            return
-        result = self._result(request, *answer)
-        with self._lock:
-            if actor.other is not request:
-                return   # lost meanwhile
-            actor.other = actor.other_ref = None
-            self._settle(actor, request, result)
-            _tree_deadline(actor, self.startup_timeout)   # the pause does not count
-            self._events.put(None)
-
-    def _finish(self, actor: _Actor, future: Any) -> None:
-        request = actor.request
-        answer = self._answer(actor, future)
-        if answer is None:
-            return
-        value, ok = answer
-        if request is None:   # the actor's readiness call
-            with self._lock:
-                actor.ref = None
-                if ok and value['code_version'] != self._code:
-                    value, ok = ProjectionError(
-                        ErrorKind.INVALID_SETTINGS,
-                        f'a Ray worker on node {value["node"]} runs projection_server code '
-                        f'{value["code_version"]}, this node {self._code}: install the '
-                        'same version on every machine of the cluster'), False
-                actor.info, actor.error = (value, None) if ok else (None, value)
-            return
-        result = self._result(request, value, ok)
-        with self._lock:
-            actor.ref = actor.request = None
-            self._settle(actor, request, result)
-            if actor.projections >= self.max_projections and not self._closed:
-                self._replace(actor)
-            self._events.put(None)
-
-    def _tree_message(self, actor: _Actor, value: Any) -> None:
-        """The next message of the tree that ``actor`` runs: a projection's result, or its
-        end (after which the projections it did not finish are queued again, one by one),
-        or the error that ended it."""
-        if isinstance(value, RayActorError):
-            self._lost(actor, value)
-            return
-        if isinstance(value, Exception):
-            _log.warning('a tree of projections failed: %s', _first_line(value))
-            value = (None, False, True)
-        index, result, ok = value
-        if index is None:
-            with self._lock:
-                left, actor.tree, actor.ref = list(actor.tree.values()), None, None
-                self._again(left)
-                if actor.projections >= self.max_projections and not self._closed:
-                    self._replace(actor)
-                self._events.put(None)
-            return
-        request = actor.tree[index]
-        result = self._result(request, result, ok)
-        with self._lock:
-            if actor.tree is None or actor.tree.pop(index, None) is not request:
-                return   # the tree was lost meanwhile
-            self._settle(actor, request, result)
-            # Each projection of a tree has its limit from the end of the one before.
-            _tree_deadline(actor, self.startup_timeout)
-
-    def _result(self, request: Request, value: Any, ok: bool
-                ) -> ProjectionResult | ProjectionError:
-        try:
-            return self._publish(request, value) if ok else value
-        except Exception as exc:   # writing into the bag directory failed
-            return ProjectionError(ErrorKind.BAG_ERROR, f'{type(exc).__name__}: {exc}')
-
-    def _settle(self, actor: _Actor, request: Request,
-                result: ProjectionResult | ProjectionError) -> None:
-        """Give ``request`` its ``result`` (called with the lock)."""
-        if isinstance(result, ProjectionResult):
-            if not request.future.done():
-                request.future.set_result(result)
+            error = ProjectionError(ErrorKind.SIMULATION_FAILED, f'{type(exc).__name__}: {exc}')
         else:
-            self._requests.fail(request, result)
-        actor.projections += 1
-
-    def _again(self, requests: list[Request]) -> None:
-        """Queue a tree's unfinished ``requests`` again, first, each to run on its own
-        (called with the lock); the cancelled ones fail."""
-        if requests:
-            _log.warning('%d projections of a tree run again one by one', len(requests))
-        for request in reversed(requests):
-            if request.future.done():
-                continue
-            if request.cancelled:
-                self._requests.fail(request, ProjectionError(
-                    ErrorKind.CANCELLED, f'projection {request.key[:12]} was cancelled'))
-                continue
-            request.family = None
-            self._queue.appendleft(request)
-
-    def _lost(self, actor: _Actor, exc: RayActorError) -> None:
-        """The actor died: fail its projection (or queue its tree's unfinished ones again),
-        wait for Ray to restart it."""
+            error = None if ready.ok else ready.result
+            if ready.ok and ready.result['code_version'] != self._code:
+                error = ProjectionError(
+                    ErrorKind.INVALID_SETTINGS,
+                    f'a Ray worker on node {ready.result["node"]} runs projection_server code '
+                    f'{ready.result["code_version"]}, this node {self._code}: install the '
+                    'same version on every machine of the cluster')
         with self._lock:
-            request, tree, other = actor.request, actor.tree, actor.other
-            actor.request = actor.tree = actor.other = actor.other_ref = None
-            if other is not None:
-                self._requests.fail(other, self._failure(
-                    other, exc, time.monotonic() >= actor.other_deadline))
-            if request is not None:
-                self._requests.fail(request, self._failure(request, exc, actor.timed_out))
-            if tree is not None:
-                if self._closed:
-                    for request in tree.values():
-                        self._requests.fail(request, self._failure(request, exc, False))
-                else:
-                    self._again(list(tree.values()))
-                    self._events.put(None)
-            if self._closed:
-                actor.ref = None
+            if actor.ready_call is None or call != actor.ready_call:
                 return
-            if request is None and tree is None and other is None:
-                # Died for good while starting: the next job says so.
-                actor.ref, actor.error = None, ProjectionError(
-                    ErrorKind.WORKER_CRASHED, f'a Ray worker could not start: {_first_line(exc)}')
+            actor.ready_call = None
+            if error is None:
+                actor.info = ready.result
+                self._started(worker)
+            else:
+                self._start_failed(worker, error)
+
+    def _call_ended(self, actor: _Actor, worker: Worker, call: Any,
+                    get: Callable[[], Result]) -> None:
+        """A ``project`` call of ``actor`` has ended (``get`` gives its answer)."""
+        with self._lock:
+            request = actor.calls.get(call)
+        if request is None:
+            return
+        try:
+            answer = get()
+        except RayActorError as exc:
+            self._died(actor, worker, exc)
+            return
+        except RayError as exc:
+            answer = Result(ProjectionError(ErrorKind.SIMULATION_FAILED,
+                                            f'{type(exc).__name__}: {exc}'), False)
+        result = self._result(request, answer)
+        with self._lock:
+            if actor.calls.pop(call, None) is None:
+                return   # lost meanwhile
+            self._answered(worker, request, result)
+            self._stopped(actor, worker)
+
+    def _tree_message(self, actor: _Actor, worker: Worker, stream: Any,
+                      get: Callable[[], LeafResult | TreeEnded]) -> None:
+        """The next message of the tree that ``actor`` runs (``get`` gives it): a
+        projection's result, or its end, or the error that ended it."""
+        try:
+            message = get()
+        except StopIteration:   # ended without its last message
+            message = TreeEnded(False)
+        except RayActorError as exc:
+            self._died(actor, worker, exc)
+            return
+        except Exception as exc:   # noqa: BLE001 (its projections run again one by one)
+            _log.warning('a tree of projections failed: %s', _first_line(exc))
+            message = TreeEnded(False)
+        if isinstance(message, LeafResult):
+            with self._lock:
+                request = worker.leaves.get(message.index)
+            result = self._result(request, message) if request is not None else None
+            with self._lock:
+                if actor.stream is stream and result is not None:
+                    self._leaf_answered(worker, message.index, result)
+            return
+        with self._lock:
+            if actor.stream is not stream:
                 return
+            actor.stream = None
+            self._tree_ended(worker)
+            self._stopped(actor, worker)
+
+    def _stopped(self, actor: _Actor, worker: Worker) -> None:
+        """A stopped actor whose calls all ended before its death could show: it is
+        restarted by Ray; wait for it (with the lock)."""
+        if worker.state is WorkerState.STOPPING and not actor.calls and actor.stream is None:
+            self._lost(worker, 'stopped')
             self._restarting(actor)
 
-    def _failure(self, request: Request, exc: RayActorError, timed_out: bool
-                 ) -> ProjectionError:
-        """Why ``request`` failed when its actor died of ``exc``."""
-        what = f'projection {request.key[:12]}'
-        if self._closed:
-            return ProjectionError(ErrorKind.POOL_CLOSED, f'the backend was closed during {what}')
-        if request.cancelled:
-            return ProjectionError(ErrorKind.CANCELLED, f'{what} was cancelled')
-        if timed_out:
-            return ProjectionError(ErrorKind.TIMEOUT, f'{what} took longer than {request.timeout:g} s')
-        return ProjectionError(ErrorKind.WORKER_CRASHED,
-                               f'Ray worker died during {what}: {_first_line(exc)}')
-
-    def _check_deadlines(self) -> None:
-        now = time.monotonic()
+    def _died(self, actor: _Actor, worker: Worker, exc: RayActorError) -> None:
+        """The actor died: the policy fails or queues again what it ran; wait for Ray to
+        restart it."""
         with self._lock:
-            for actor in self._actors:
-                if actor.ref is None and actor.other is None:
-                    continue
-                if _running(actor):
-                    if now >= _deadline(actor) and not actor.timed_out:
-                        actor.timed_out = True
-                        _kill(actor.handle, restart=True)
-                elif now - actor.started > self.startup_timeout and self._queue:
-                    # No actor could be placed or started (e.g. no free CPU in the cluster).
-                    self._requests.fail(self._queue.popleft(), ProjectionError(
-                        ErrorKind.TIMEOUT, f'no Ray worker started within {self.startup_timeout:g} s'
-                        ' (are there free CPUs in the cluster?)'))
-                    actor.started = now
+            actor.calls, actor.stream = {}, None
+            self._lost(worker, f'Ray worker: {_first_line(exc)}')
+            if not self._closed:
+                self._restarting(actor)
+
+    def _result(self, request: Request, answer: Result | LeafResult
+                ) -> ProjectionResult | ProjectionError:
+        """Publish the bag of ``answer``; or its error."""
+        if not answer.ok:
+            return answer.result
+        try:
+            return self._publish(request, answer.result)
+        except Exception as exc:   # writing into the bag directory failed
+            return ProjectionError(ErrorKind.BAG_ERROR, f'{type(exc).__name__}: {exc}')
 
     def _publish(self, request: Request, value: tuple[dict[str, bytes], dict[str, Any]]
                  ) -> ProjectionResult:
@@ -564,60 +449,6 @@ class RayBackend(BackendBase):
         timeline['meta']['bag'] = str(final)
         return ProjectionResult(str(final), timeline)
 
-    def _restarting(self, actor: _Actor) -> None:
-        """Wait for Ray to restart the actor (called with the lock)."""
-        actor.info, actor.projections = None, 0
-        actor.ref = self._watch(actor.handle.ready.options(max_task_retries=-1).remote())
-        actor.started = time.monotonic()
-
-    def _new_actor(self) -> _Actor:
-        actor = _Actor(self._remote.remote(self.settings.to_dict()))
-        actor.ref = self._watch(actor.handle.ready.options(max_task_retries=-1).remote())
-        actor.started = time.monotonic()
-        return actor
-
-    def _replace(self, actor: _Actor, kill: bool = True) -> None:
-        """A new actor in place of one that cannot serve (called with the lock)."""
-        if kill:
-            _kill(actor.handle, restart=False)
-        fresh = self._new_actor()
-        actor.handle, actor.ref, actor.started = fresh.handle, fresh.ref, fresh.started
-        actor.info = actor.error = actor.request = actor.tree = None
-        actor.other = actor.other_ref = None
-        actor.projections = 0
-
-
-def _deadline(actor: _Actor) -> float:
-    """The time limit of what ``actor`` runs: another query's projection's while it
-    pauses the tree (the pause does not count against the tree)."""
-    return actor.other_deadline if actor.other is not None else actor.deadline
-
-
-def _tree_deadline(actor: _Actor, default: float) -> None:
-    """Restart the time limit of ``actor``'s tree, if it runs one: the longest limit of
-    the projections it has left (``default`` if none)."""
-    if actor.tree is not None:
-        actor.deadline = time.monotonic() + max(
-            (r.timeout for r in actor.tree.values()), default=default)
-
-
-def _pausable(actor: _Actor) -> set[str] | None:
-    """The owners of the projections that ``actor``'s tree has not finished, if it could
-    pause the tree for another query's projection; None if it runs none or runs one
-    beside it already. A tree whose projections have all ended but whose end has not come
-    yet has none to pause for: a projection started beside it would only keep the actor
-    from its next tree (and split the next family into single projections)."""
-    if not actor.tree or actor.other is not None:
-        return None
-    return {o for r in actor.tree.values() for o in r.owners}
-
-
-def _running(actor: _Actor) -> list[Request]:
-    """The requests that ``actor`` runs."""
-    running = list(actor.tree.values()) if actor.tree is not None else (
-        [actor.request] if actor.request is not None else [])
-    return running + [actor.other] if actor.other is not None else running
-
 
 def _kill(handle: Any, restart: bool) -> None:
     try:
@@ -628,4 +459,3 @@ def _kill(handle: Any, restart: bool) -> None:
 
 def _first_line(exc: BaseException) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-
