@@ -28,7 +28,7 @@ def grasp(client, scenario: dict, force: float, position: float,
     physics, task = projection.physics, projection.task
     (egg,) = physics.models
     # EggShell takes ``cache`` only when the world builder makes it: no public switch after.
-    egg._cache_on = cache
+    egg.cache = cache
     physics.models = []   # stepped and measured separately below
     steps = int(task.duration * settings.physics.rate_hz)
     stepping = model = 0.0

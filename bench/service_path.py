@@ -15,6 +15,7 @@ query asked again ten times with every bag made (a cached re-query: Prolog and t
 
 from __future__ import annotations
 
+import logging
 import os
 import resource
 import statistics
@@ -31,33 +32,27 @@ def cpu_self() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-class Recorder:
-    """Wraps the pool's slots: (slot, sent, answered) for every projection.
-
-    The local pool says nowhere when a worker is given a job and when it answers, so this
-    wraps a private method of its slots (``_Slot._receive``) until it does.
-    """
+class Recorder(logging.Handler):
+    """(worker thread, sent, answered) of every projection, from the local pool's debug log
+    of when it gives a worker a projection and when the worker answers."""
 
     def __init__(self):
-        from projection_server.workers.local import pool
-
+        super().__init__(logging.DEBUG)
         self.spans: list[tuple[str, float, float]] = []
+        self._sent: dict[str, float] = {}
         self._lock = threading.Lock()
-        self._pool = pool
-        original = pool._Slot._receive
-        recorder = self
+        log = logging.getLogger('projection_server.workers.local.pool')
+        log.setLevel(logging.DEBUG)
+        log.addHandler(self)
 
-        def receive(slot, timeout, what):
-            start = time.perf_counter()
-            try:
-                return original(slot, timeout, what)
-            finally:
-                if what.startswith('projection'):
-                    with recorder._lock:
-                        recorder.spans.append((threading.current_thread().name, start,
-                                               time.perf_counter()))
-
-        pool._Slot._receive = receive
+    def emit(self, record: logging.LogRecord) -> None:
+        message = record.getMessage()
+        bag = message.rsplit(': ', 1)[-1]
+        with self._lock:
+            if message.startswith('projection sent'):
+                self._sent[bag] = record.created
+            elif message.startswith('projection answered') and bag in self._sent:
+                self.spans.append((record.threadName, self._sent.pop(bag), record.created))
 
     def take(self) -> list[tuple[str, float, float]]:
         with self._lock:

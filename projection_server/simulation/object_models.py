@@ -154,7 +154,7 @@ class EggShell(Breakable):
                  replace: Callable[[Physics, str], None], cache: bool = True):
         super().__init__(name, breaking_force, replace)
         self.semi_axes = semi_axes
-        self._cache_on = cache
+        self.cache = cache   # solve the pads anew each step when False (for measuring)
         # (body, link) of a pad -> (force, shell pose in the face's frame, load) of its
         # last solution
         self._cache: dict[tuple[int, int], tuple[float, tuple[float, ...], Quat, float]] = {}
@@ -224,7 +224,7 @@ class EggShell(Breakable):
         offset = _rotate(inverse, (px - qx, py - qy, pz - qz))
         turn = _multiply(inverse, orn)
         cached = self._cache.get(key)
-        if cached is not None and self._cache_on:
+        if cached is not None and self.cache:
             force0, (ox, oy, oz), turn0, load0 = cached
             if (abs(force - force0) <= CACHE_FORCE * force0
                     and max(abs(offset[0] - ox), abs(offset[1] - oy), abs(offset[2] - oz))

@@ -95,7 +95,7 @@ def shell_loads(client, scenario, settings, seconds, cache=True, program=None):
         task = get_program(program[0]).create(physics, parse_scenario(scenario), program[1],
                                               np.random.default_rng(0))
     (shell,) = physics.models
-    shell._cache_on = cache
+    shell.cache = cache
     loads, peaks = [], []
     for step in range(round(seconds * settings.physics.rate_hz)):
         if task is not None and step % settings.control.steps_per_control == 0:

@@ -288,6 +288,7 @@ class _Slot:
                 elif isinstance(message, Result):
                     answered, bag = projecting
                     projecting = None
+                    _log.debug('projection answered by its worker: %s', bag.name)
                     result = self._published(bag, message)
                     shutil.rmtree(bag.parent, ignore_errors=True)   # before it is answered
                     with pool._lock:
@@ -333,6 +334,8 @@ class _Slot:
             self._conn.send(command)
         except OSError:
             return False
+        if isinstance(command, Project):   # when a worker was given work, for benchmarks
+            _log.debug('projection sent to its worker: %s', os.path.basename(command.bag))
         return True
 
     def _receive(self, timeout: float, what: str) -> Answer | None:
