@@ -247,3 +247,36 @@ def _descendants(pid: int, deadline: float) -> set[int]:
             return found
         assert time.monotonic() < deadline, 'no tree started'
         time.sleep(0.005)
+
+
+# A plan's parametrizations (Table I's grasp plan at three forces, on the pr2 gripper) part
+# where close_gripper's force first acts: the approach before it is stepped once.
+PLAN = [{'action': 'move_to', 'object': 'egg1', 'offset': [-0.09, 0, 0],
+         'orientation': ['side', 0.0], 'speed': 2.0},
+        {'action': 'move_to', 'object': 'egg1', 'offset': [0, 0, 0], 'speed': 0.15},
+        {'action': 'close_gripper', 'force': {'param': 'force'}},
+        {'action': 'wait', 'seconds': 0.3},
+        {'action': 'move_by', 'offset': [0, 0, 0.1]}]
+
+
+def test_a_plans_parametrizations_run_as_a_tree_with_the_bags_of_their_straight_runs(
+        make_scenario, tmp_path, caplog):
+    caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
+    settings, simulator = load_settings(), Simulator()
+    plan_jobs = [Job.checked(make_scenario(), 'plan', {'force': f}, None, PLAN)
+                 for f in (1.0, 5.0, 11.0)]
+    assert len({job.family(settings) for job in plan_jobs}) == 1
+    straight = {}
+    try:
+        for job in plan_jobs:
+            bag = tmp_path / 'straight' / job.key(settings) / BagStore.name(job, job.key(settings))
+            straight[job.key(settings)] = files_of(bag, project(simulator, job, settings, bag))
+    finally:
+        simulator.close()
+    with WorkerPool(tmp_path / 'pool', workers=1) as pool:
+        results = [f.result(timeout=120.0) for f in pool.submit_all(plan_jobs, 60.0)]
+    assert 'a tree of 3 projections' in caplog.text
+    for job, result in zip(plan_jobs, results):
+        assert (files(result.bag), without_bag(result.timeline)) == straight[job.key(settings)]
+    outcomes = [{e[0] for e in result.timeline['events']} for result in results]
+    assert 'slip' in outcomes[0] and 'lift' in outcomes[1] and 'slip' not in outcomes[1]

@@ -178,12 +178,6 @@ def plan_bound(steps: Sequence[Mapping[str, Any]]) -> float:
     return total + SETTLE_AFTER
 
 
-def first_parametric_step(plan: Sequence[Any]) -> int:
-    """The index of the plan's first step that names a parameter (len(plan) if none): the
-    steps before it are the same for every parametrization."""
-    return next((i for i, step in enumerate(plan) if _references(step)), len(plan))
-
-
 def _references(value: Any) -> set[str]:
     if isinstance(value, dict):
         if set(value) == {'param'}:
