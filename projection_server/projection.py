@@ -27,13 +27,14 @@ import threading
 import time
 from typing import Any, TYPE_CHECKING
 
+from projection_server import beliefs
 from projection_server.simulation import programs as _programs
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import Job
 from projection_server.workers import create_backend, Retention
 
 if TYPE_CHECKING:
-    from collections.abc import Mapping
+    from collections.abc import Mapping, Sequence
     from concurrent.futures import Future
 
     from projection_server.workers import ProjectionResult, WorkerBackend
@@ -44,6 +45,7 @@ __all__ = [
     'configure',
     'default_bag_dir',
     'drop',
+    'belief_problem',
     'physics_settings',
     'prefetch',
     'plan_problem',
@@ -71,6 +73,9 @@ _config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None,
 # query that never asks for its timelines must not grow the process).
 _timelines: OrderedDict[str, dict[str, Any]] = OrderedDict()
 _KEEP_TIMELINES = 64
+# What each bag's world drew from the scenario's distributions, for its timeline.
+_drawn: OrderedDict[str, list[tuple[str, str, float]]] = OrderedDict()
+_KEEP_DRAWN = 4096
 # A stop event per owner (query) that makes its waits end at once when it is cancelled.
 _stops: dict[str, threading.Event] = {}
 
@@ -114,33 +119,41 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
 def project(scenario: dict[str, Any], program: str, params: dict[str, Any],
             timeout: float, owner: str | None = None,
             physics: Mapping[str, Any] | None = None,
-            plan: list[Any] | None = None) -> dict[str, Any]:
+            plan: list[Any] | None = None,
+            world: Sequence[int] | None = None) -> dict[str, Any]:
     """Run one projection and return ``{'bag': path, 'timeline': timeline or None}``.
 
     The timeline (the dict of ``docs/contracts.md``) is the one the worker made from its
     samples; it is None when the bag was found in the bag directory, made by an earlier
     process (``translate_bag`` reads it). ``timeout`` is the wall-clock limit of the
     simulation in seconds; ``physics`` chooses engine settings (:func:`physics_settings`)
-    over the program's; ``plan`` is the plan of the program ``plan``. An identical
-    projection made before (same scenario, program, parameters, settings, plan and code)
-    returns the existing bag.
+    over the program's; ``plan`` is the plan of the program ``plan``. A scenario whose
+    properties are distributions (:mod:`projection_server.beliefs`) is projected in its
+    nominal world, or with ``world`` ``[seed, index]`` in that world drawn from them. An
+    identical projection made before (same scenario, program, parameters, settings, plan and
+    code) returns the existing bag.
 
     Raises:
         ProjectionError: with ``kind`` ``invalid_scenario``, ``unknown_program``,
             ``invalid_parameters``, ``timeout``, ``worker_crashed``, ``simulation_failed``,
             ``cancelled``...
     """
-    result = _wait(submit(scenario, program, params, timeout, owner, physics, plan), owner)
+    result = _wait(submit(scenario, program, params, timeout, owner, physics, plan, world),
+                   owner)
     return {'bag': result.bag, 'timeline': result.timeline}
 
 
 def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
              timeout: float, owner: str | None = None,
              physics: Mapping[str, Any] | None = None,
-             plan: list[Any] | None = None) -> str:
+             plan: list[Any] | None = None,
+             world: Sequence[int] | None = None) -> str:
     """Like :func:`project`, but return the path of the bag and keep the timeline for
-    :func:`timeline`."""
-    future = submit(scenario, program, params, timeout, owner, physics, plan)
+    :func:`timeline` (with the world's draws as its quantities ``sampled(Entity,
+    Property)``)."""
+    concrete, drawn = _world(scenario, world)
+    future = _get_backend().submit(Job.checked(concrete, program, params, physics, plan),
+                                   timeout, owner)
     cached = future.done()   # its bag was made before, or prefetched and is done
     started = time.monotonic()
     _log.debug('projection %s %s started', program, params)
@@ -152,11 +165,15 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
         raise
     _log.info('projection %s %s ended in %.2f s%s: %s', program, params,
               time.monotonic() - started, ' (cache hit)' if cached else '', result.bag)
-    if result.timeline is not None:
-        with _lock:
+    with _lock:
+        if result.timeline is not None:
             _timelines[result.bag] = result.timeline
             while len(_timelines) > _KEEP_TIMELINES:
                 _timelines.popitem(last=False)
+        if drawn:
+            _drawn[result.bag] = drawn
+            while len(_drawn) > _KEEP_DRAWN:
+                _drawn.popitem(last=False)
     return result.bag
 
 
@@ -169,30 +186,36 @@ def timeline(bag: str | os.PathLike[str]) -> dict[str, Any]:
     """
     with _lock:
         made = _timelines.pop(os.fspath(bag), None)
-    if made is not None:
-        return made
-    from projection_server.workers.run import translate_bag
+        drawn = _drawn.get(os.fspath(bag), [])
+    if made is None:
+        from projection_server.workers.run import translate_bag
 
-    return translate_bag(bag)
+        made = translate_bag(bag)
+    if drawn:   # what its world drew: the worker knows nothing of beliefs
+        made = {**made, 'quantities': [*made['quantities'], *(
+            ['sampled', [entity, key], value] for entity, key, value in drawn)]}
+    return made
 
 
 def submit(scenario: dict[str, Any], program: str, params: dict[str, Any],
            timeout: float, owner: str | None = None,
            physics: Mapping[str, Any] | None = None,
-           plan: list[Any] | None = None) -> Future[ProjectionResult]:
+           plan: list[Any] | None = None,
+           world: Sequence[int] | None = None) -> Future[ProjectionResult]:
     """Like :func:`project`, but return at once with a future of the result.
 
     For running a query's parametrizations ahead of Prolog's backtracking; a later
     :func:`project` of the same projection waits for the same future.
     """
-    job = Job.checked(scenario, program, params, physics, plan)
+    job = Job.checked(_world(scenario, world)[0], program, params, physics, plan)
     return _get_backend().submit(job, timeout, owner)
 
 
 def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str, Any]],
              timeout: float, owner: str | None = None,
              physics: Mapping[str, Any] | None = None,
-             plan: list[Any] | None = None) -> int:
+             plan: list[Any] | None = None,
+             worlds: list[Sequence[int] | None] | None = None) -> int:
     """Queue projections that a query will probably ask for next, all at once; return how
     many.
 
@@ -201,14 +224,29 @@ def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str,
     reports their errors when (and if) they are asked for.
     """
     jobs = []
-    for params in params_list:
+    for params, world in zip(params_list, worlds or [None] * len(params_list)):
         try:
-            jobs.append(Job.checked(scenario, program, params, physics, plan))
+            jobs.append(Job.checked(_world(scenario, world)[0], program, params, physics,
+                                    plan))
         except ProjectionError:
             pass
     if jobs:
         _get_backend().submit_all(jobs, timeout, owner)
     return len(jobs)
+
+
+def belief_problem(cls: str, key: str, belief: dict[str, Any]) -> str | None:
+    """What is wrong with the distribution ``belief`` as property ``key`` of class ``cls``
+    (:func:`projection_server.beliefs.problem`); None: nothing."""
+    return beliefs.problem(cls, key, belief)
+
+
+def _world(scenario: dict[str, Any], world: Sequence[int] | None
+           ) -> tuple[dict[str, Any], list[tuple[str, str, float]]]:
+    """The plain world of ``scenario`` to project: nominal, or world ``[seed, index]``."""
+    if world is None:
+        return beliefs.nominal(scenario), []
+    return beliefs.world(scenario, *world)
 
 
 def plan_problem(plan: list[Any], params: dict[str, Any]) -> list[str] | None:

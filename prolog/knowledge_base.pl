@@ -17,7 +17,8 @@
             kb_property_kind/2,         % +Key, -Kind
             kb_check_property/4,        % +Class, +Key, +Value0, -Value
             kb_class_properties/2,      % +Class, -Keys:list(atom)
-            kb_check_pose/2             % +Pose0, -Pose:dict
+            kb_check_pose/2,            % +Pose0, -Pose:dict
+            kb_belief/1                 % ?Term
           ]).
 :- use_module(library(semweb/rdf11)).
 :- use_module(library(semweb/turtle), []).     % the Turtle parser for rdf_load/2
@@ -256,6 +257,13 @@ literal_value(reference, _Key, IRI, Name) :-
     (   atom(IRI), rdf_global_id(kitchen:Name, IRI)
     ->  true
     ;   type_error(entity_reference, IRI)
+    ).
+literal_value(data(_), Key, Text^^Type, Value) :-
+    rdf_equal(Type, kitchen:'Distribution'),
+    !,
+    (   catch(term_string(Term, Text), _, fail), belief_term(Term)
+    ->  check_value(quantity, Key, Term, Value)
+    ;   domain_error(belief, Text)
     ).
 literal_value(data(Range), Key, Literal, Value) :-
     (   Literal = V0^^_ -> true
@@ -681,6 +689,10 @@ range_kind_(kitchen:'ModelFile', file).
 
 % check_value(+Kind, +Key, +Value0, -Value)
 check_value(quantity, _Key, V0, V) :-
+    belief_term(V0),
+    !,
+    belief(V0, V).
+check_value(quantity, _Key, V0, V) :-
     !,
     must_be(number, V0),
     (   V0 >= 0 -> V is float(V0) ; domain_error(not_less_than_zero, V0) ).
@@ -707,6 +719,32 @@ check_value(_Kind, _Key, V0, V) :-        % text, file
     ->  atom_string(V0, V)
     ;   type_error(text, V0)
     ).
+
+%!  kb_belief(?Term) is semidet.
+%
+%   Term is a distribution a quantity property may have instead of a
+%   number: `uniform(Low, High)`, `normal(Mean, SD)` or `choice(Values)`.
+
+kb_belief(Term) :-
+    belief_term(Term).
+
+belief_term(Term) :-
+    compound(Term),
+    compound_name_arity(Term, Name, Arity),
+    memberchk(Name/Arity, [uniform/2, normal/2, choice/1]).
+
+% belief(+Term, -Dict): a distribution as the simulator takes it (its range
+% and the property's are checked there: projection_server/beliefs.py).
+belief(uniform(L, H), belief{distribution: uniform, low: Low, high: High}) :-
+    must_be(number, L), must_be(number, H),
+    Low is float(L), High is float(H).
+belief(normal(M, SD), belief{distribution: normal, mean: Mean, sd: S}) :-
+    must_be(number, M), must_be(number, SD),
+    Mean is float(M), S is float(SD).
+belief(choice(Vs), belief{distribution: choice, values: Values}) :-
+    must_be(list(number), Vs),
+    (   Vs == [] -> domain_error(non_empty_list, Vs) ; true ),
+    maplist(to_float, Vs, Values).
 
 name_string(Name, String) :-
     text_to_string(Name, String),

@@ -332,6 +332,9 @@ kitchen:gadget1 a kitchen:Gadget ;
     kitchen:weights \" 1  -2.5 \"^^kitchen:NumberList ;
     kitchen:joint_names \"joint_a joint_b\"^^kitchen:NameList .
 kitchen:gadget2 a kitchen:Gadget ; kitchen:direction \"0 up 1\"^^kitchen:Vector .
+kitchen:gadget3 a kitchen:Gadget ; kitchen:mass \"uniform(0.2, 0.4)\"^^kitchen:Distribution ;
+    kitchen:friction \"choice([0.5, 1])\"^^kitchen:Distribution .
+kitchen:gadget4 a kitchen:Gadget ; kitchen:mass \"normal(0.2\"^^kitchen:Distribution .
 "]),
     close(S),
     knowledge_base_add(File).
@@ -368,6 +371,20 @@ test(check_names_empty, error(domain_error(non_empty_list, []))) :-
     kb_check_property(gadget, joint_names, [], _).
 test(check_names_not_text, error(type_error(text, 1))) :-
     kb_check_property(gadget, joint_names, [1], _).
+test(distributions_in_turtle, [M, F] =@= [belief{distribution: uniform, low: 0.2, high: 0.4},
+                                           belief{distribution: choice, values: [0.5, 1.0]}]) :-
+    kb_entity_properties(gadget3, P),
+    M = P.mass, F = P.friction.
+test(a_malformed_distribution_literal, error(domain_error(belief, "normal(0.2"))) :-
+    kb_entity_properties(gadget4, _).
+test(check_distribution, V == belief{distribution: normal, mean: 10.0, sd: 1.0}) :-
+    kb_check_property(egg, mass, normal(10, 1), V).
+test(check_distribution_numbers, error(type_error(number, a))) :-
+    kb_check_property(egg, mass, uniform(a, 1), _).
+test(check_distribution_choice_empty, error(domain_error(non_empty_list, []))) :-
+    kb_check_property(egg, mass, choice([]), _).
+test(distribution_terms, Bs == [uniform(0, 1), normal(0, 1), choice([])]) :-
+    include(kb_belief, [uniform(0, 1), normal(0, 1), choice([]), beta(1, 2), 0.5], Bs).
 test(add_missing_file, error(existence_error(file, '/nonexistent/my.ttl'))) :-
     knowledge_base_add('/nonexistent/my.ttl').
 test(add_bad_turtle, [ setup(bad_file(Bad)), cleanup(delete_file(Bad)),

@@ -6,14 +6,16 @@
             projection_program/2,       % ?Program, -FormalParams:list(dict)
             projection_physics_setting/3, % ?Program, ?Name, -Setting:dict
             projection_default_timeout/1, % -Seconds
-            with_query_context/2        % +Context:dict, :Goal
+            with_query_context/2,       % +Context:dict, :Goal
+            parameter_values/2          % +Range, -Values:list(number)
           ]).
 :- autoload(library(apply), [maplist/3, foldl/4]).
 :- autoload(library(error),
             [ must_be/2, domain_error/2, existence_error/2, type_error/2,
               instantiation_error/1 ]).
 :- autoload(library(lists), [list_to_set/2, member/2, nth0/3, numlist/3]).
-:- autoload(library(option), [option/3]).
+:- autoload(library(option), [option/2, option/3]).
+:- autoload(library(pairs), [pairs_keys/2, pairs_keys_values/3]).
 :- autoload(library(aggregate), [aggregate_all/3]).
 :- autoload(library(solution_sequences), [limit/2]).
 :- use_module(library(janus), [py_call/2]).
@@ -88,7 +90,17 @@ on that projection's timeline:
 %       (default: projection_default_timeout/1);
 %     - physics(+Dict): engine settings of these projections instead of the
 %       program's (projection_physics_setting/3), e.g.
-%       `_{rate_hz: 960, solver_iterations: 400}`.
+%       `_{rate_hz: 960, solver_iterations: 400}`;
+%     - samples(+N): project each parametrization in N worlds drawn from the
+%       scenario's beliefs (properties given as distributions, see
+%       scenario_set_property/4), the worlds enumerated for each
+%       parametrization in turn; each world's draws are the quantities
+%       `sampled(Entity, Property)` of its timeline.  Without it, the
+%       scenario's nominal world (each distribution's middle or mean);
+%     - seed(+K): the sequence the worlds are drawn from (default 0): the
+%       same seed draws the same worlds, whichever the parametrization;
+%     - worlds(+From, +To): the worlds From..To-1 of the sequence (samples(N)
+%       is worlds(0, N)).
 %
 %   A number as Options is the timeout.
 %
@@ -98,6 +110,7 @@ on that projection's timeline:
 %   @error type_error(projection_parameter, E) for a malformed Params element
 %   @error domain_error(parameter_value, Name=Value) for a value out of range
 %   @error domain_error(projection_option, O) for an unknown option
+%   @error domain_error(positive_integer, N) for samples(N) with N < 1
 %   @error domain_error(physics_setting(Name, Range), Value) for a physics
 %          setting out of Range (`between(Min, Max)` or `multiple_of(N)`)
 %   @error domain_error(plan_step, Step), domain_error(plan_length(1, Max), N)
@@ -170,11 +183,11 @@ simulate(Scenario, Program, Params, Options, Log) :-
 
 % simulate(..., -Step): Step is step(I, Total, Program, Values), the 0-based place
 % of the projection in the enumeration, for make_projection's progress report.
-simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Values)) :-
+simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Shown)) :-
     must_be(atom, Scenario),
     must_be(list, Params),
     program(Program0, Program, Formal),
-    projection_options(Program, Options, Timeout, Physics),
+    projection_options(Program, Options, Timeout, Physics, Worlds),
     maplist(parse_param(Program, Formal), Params, Choices),
     check_unique(Choices),
     plan_of(Program0, Choices, Plan),
@@ -185,17 +198,33 @@ simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Value
     findall(Values, ( instantiate(Choices, Pairs),
                       dict_pairs(Values, params, Pairs) ), All),
     check_plan(Plan, All),
+    % The units of the enumeration: each parametrization, in each world.
+    findall(Values-World, ( member(Values, All), world(Worlds, World) ), Units),
+    pairs_keys(Units, UnitValues),
     py_call('projection_server.projection':workers(), Depth),
-    py_call('projection_server.projection':prefetch_plan(Program, All, Depth), Ahead),
-    Table =.. [params|All],
-    pairs_keys_values(Steps, All, Ahead),
-    length(All, Total),
+    py_call('projection_server.projection':prefetch_plan(Program, UnitValues, Depth), Ahead),
+    Table =.. [units|Units],
+    pairs_keys_values(Steps, Units, Ahead),
+    length(Units, Total),
     query_owner(Owner),
     Run = run(Description, Program, Timeout, Physics, Owner, Plan),
-    nth0(I, Steps, Values-Next),
+    nth0(I, Steps, (Values-World)-Next),
     prefetch(Run, Table, Next),
     maplist(bind_choice(Values), Choices),
-    run_simulation(Run, Values, Log).
+    shown(Values, World, Shown),
+    run_simulation(Run, Values, World, Log).
+
+% world(+Worlds, -World): each world of the projection: @none for the
+% nominal one, else [Seed, Index].
+world(nominal, @(none)).
+world(worlds(Seed, From, To), [Seed, J]) :-
+    End is To - 1,
+    between(From, End, J).
+
+% shown(+Values, +World, -Shown): the parametrization as progress reports it,
+% with the world's index when it is one of several.
+shown(Values, @(none), Values) :- !.
+shown(Values, [_, J], Values.put(world, J)).
 
 % program(+Program0, -Name, -Formal): a registered program and its formal
 % parameters, or a plan (Name `plan`, any parameters).
@@ -259,20 +288,23 @@ bind_choice(Values, choice(Var, Name, _)) :-
 % again would cost a check and a key (a third of a cached query).
 prefetch(_, _, []) :- !.
 prefetch(run(Description, Program, Timeout, Physics, Owner, Plan), Table, Ahead) :-
-    findall(V, ( member(J, Ahead), A is J + 1, arg(A, Table, V) ), Next),
-    py_call('projection_server.projection':prefetch(Description, Program, Next,
+    findall(V-W, ( member(J, Ahead), A is J + 1, arg(A, Table, V-W) ), Next),
+    pairs_keys_values(Next, Values, Worlds),
+    py_call('projection_server.projection':prefetch(Description, Program, Values,
                                                     Timeout, physics=Physics,
-                                                    owner=Owner, plan=Plan), _).
+                                                    owner=Owner, plan=Plan,
+                                                    worlds=Worlds), _).
 
-projection_options(_, Timeout, Timeout, _{}) :-
+projection_options(_, Timeout, Timeout, _{}, nominal) :-
     number(Timeout), !,
     must_be_positive(Timeout).
-projection_options(Program, Options, Timeout, Physics) :-
+projection_options(Program, Options, Timeout, Physics, Worlds) :-
     must_be(list, Options),
     maplist(check_option, Options),
     projection_default_timeout(Default),
     option(timeout(Timeout), Options, Default),
     must_be_positive(Timeout),
+    worlds_option(Options, Worlds),
     option(physics(Physics), Options, _{}),
     (   is_dict(Physics)
     ->  true
@@ -286,8 +318,31 @@ check_option(Option) :-
     instantiation_error(Option).
 check_option(timeout(_)) :- !.
 check_option(physics(_)) :- !.
+check_option(samples(N)) :- !,
+    must_be(integer, N),
+    (   N >= 1 -> true ; domain_error(positive_integer, N) ).
+check_option(seed(K)) :- !,
+    must_be(integer, K),
+    (   K >= 0 -> true ; domain_error(nonneg, K) ).
+check_option(worlds(From, To)) :- !,
+    must_be(nonneg, From), must_be(integer, To),
+    (   To > From -> true ; domain_error(worlds_range, worlds(From, To)) ).
 check_option(Option) :-
     domain_error(projection_option, Option).
+
+% worlds_option(+Options, -Worlds): `nominal`, or worlds(Seed, From, To), the
+% worlds From..To-1 of the sequence Seed drawn from the scenario's beliefs.
+worlds_option(Options, Worlds) :-
+    option(seed(Seed), Options, 0),
+    (   option(worlds(From, To), Options)
+    ->  (   option(samples(_), Options)
+        ->  domain_error(projection_option, samples_and_worlds)
+        ;   Worlds = worlds(Seed, From, To)
+        )
+    ;   option(samples(N), Options)
+    ->  Worlds = worlds(Seed, 0, N)
+    ;   Worlds = nominal
+    ).
 
 check_physics_setting(Program, Name-Value) :-
     (   projection_physics_setting(Program, Name, Setting)
@@ -321,6 +376,16 @@ parse_param(Program, Formal, Param, choice(Var, Name, Values)) :-
     ->  maplist(check_value(F, Name), Values)
     ;   existence_error(program_parameter, Program:Name)
     ).
+
+%!  parameter_values(+Range, -Values:list(number)) is det.
+%
+%   Values are the values of a parameter's Range as make_projection/5 takes
+%   it: a non-empty list, or `range(Low, High, Step)`.
+%
+%   @error type_error(parameter_range, Range) for another term
+
+parameter_values(Range, Values) :-
+    range_values(Range, Values).
 
 range_values(range(Low, High, Step), Values) :- !,
     must_be(number, Low), must_be(number, High), must_be_positive(Step),
@@ -359,11 +424,13 @@ instantiate([choice(_, Name, Values)|T], [Name-Value|Pairs]) :-
     member(Value, Values),
     instantiate(T, Pairs).
 
-run_simulation(run(Description, Program, Timeout, Physics, Owner, Plan), Values, Log) :-
+run_simulation(run(Description, Program, Timeout, Physics, Owner, Plan), Values, World,
+               Log) :-
     catch(py_call('projection_server.projection':simulate(Description, Program,
                                                           Values, Timeout,
                                                           physics=Physics,
-                                                          owner=Owner, plan=Plan), Log0),
+                                                          owner=Owner, plan=Plan,
+                                                          world=World), Log0),
           error(python_error(Class, Value), _),
           projection_error(Class, Value)),
     atom_string(Log, Log0).

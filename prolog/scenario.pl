@@ -25,6 +25,7 @@
                 kb_class_properties/2, kb_property_kind/2 ]).
 :- use_module(object_factory, [object_type/1, object_model/3]).
 :- use_module(model_files, [model_file/2]).
+:- use_module(library(janus), [py_call/2]).
 
 /** <module> Scenarios: the entities a projection runs on
 
@@ -241,7 +242,25 @@ check_pair(Name, Class, Key-Value0, Key-Value) :-
 check_property(Name, Class, Key, Value0, Value) :-
     catch(kb_check_property(Class, Key, Value0, Value),
           error(domain_error(entity_property, Key), _),
-          unknown_property(Name, Class, Key)).
+          unknown_property(Name, Class, Key)),
+    check_belief(Name, Class, Key, Value0, Value).
+
+% check_belief(+Name, +Class, +Key, +Term, +Value): a distribution (Value a
+% belief dict) lies, at least in part, in the range of the property, which the
+% simulator knows (projection_server/beliefs.py): truncated to it, it is
+% the property's belief.
+check_belief(Name, Class, Key, Term, Value) :-
+    (   is_dict(Value, belief)
+    ->  kb_simulator_class(Class, SimClass),
+        py_call('projection_server.projection':belief_problem(SimClass, Key, Value),
+                Problem),
+        (   Problem == @(none)
+        ->  true
+        ;   format(atom(Msg), '~w\'s ~w: ~w', [Name, Key, Problem]),
+            throw(error(domain_error(belief(Key), Term), context(_, Msg)))
+        )
+    ;   true
+    ).
 
 unknown_property(Name, Class, Key) :-
     kb_class_properties(Class, Keys),
@@ -350,11 +369,19 @@ sub_entity(E, Sub) :-
 %   Set the property Key of the entity Name (a part included) in
 %   Scenario to Value, e.g. the egg's friction for a counterfactual
 %   projection.  Key is a physical property of the entity's class or
-%   `pose` (Value a pose dict, see kb_check_pose/2).
+%   `pose` (Value a pose dict, see kb_check_pose/2).  The value of a
+%   numeric property may be a distribution, what a robot believes of it:
+%   `uniform(Low, High)`, `normal(Mean, SD)` or `choice(Values)`, truncated
+%   to the property's valid range (friction at least 0, restitution within
+%   [0, 1], ...).  A projection uses its mean, or with make_projection/5's
+%   `samples(N)` draws worlds from it.
 %
 %   @error existence_error(scenario, Scenario) for an unknown scenario.
 %   @error permission_error(modify, scenario, Scenario) for a KB scenario.
 %   @error existence_error(entity, Name) if Name is not in Scenario.
+%   @error domain_error(belief(Key), Distribution) for a distribution wholly
+%          outside the property's range, with an SD not above 0, or of a
+%          property that is no number
 %   @error domain_error(entity_property, Key) for a property the simulator
 %          does not build the entity from (the message names the entity
 %          and the properties it accepts; kb_class_properties/2).

@@ -17,6 +17,9 @@ import projection_server
 PACKAGE = Path(projection_server.__file__).parent
 STAGES = ['service', 'projection', 'workers', 'simulation', 'bags', 'timeline']
 SHARED = {'errors', 'canonical', 'settings', 'bags.schema', 'assets'}
+# Modules of a stage that are not named as the stage: the projection layer's beliefs (it
+# draws the worlds of uncertain properties before a job is made).
+MEMBERS = {'beliefs': 'projection'}
 # Re-exports at the old paths, kept for one release; tools that drive the whole service.
 OUTSIDE = {'node', 'launcher', 'bindings', 'reproduce'}
 
@@ -35,6 +38,7 @@ def _part(module: str) -> str:
         if module == shared or module.startswith(shared + '.'):
             return 'shared'
     head = module.split('.')[0]
+    head = MEMBERS.get(head, head)
     if head in STAGES or head in OUTSIDE or head == 'client':
         return head
     return ''
