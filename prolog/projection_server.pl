@@ -7,6 +7,7 @@
 :- use_module(scenario).
 :- use_module(timeline).
 :- use_module(projection).
+:- use_module(uncertainty).
 :- autoload(library(error), [must_be/2]).
 :- autoload(library(lists), [member/2]).
 
@@ -20,6 +21,7 @@ module `user`:
   - scenarios (scenario.pl): create_scenario/1, add_to_scenario/2, ...
   - projection (projection.pl): make_projection/4,5, simulate/5, translate/2
   - timelines (timeline.pl, temporal.pl): holds/2,3, occurs/2,3, Allen's relations
+  - uncertainty (uncertainty.pl): outcome_probability/7
 */
 
 %!  projection_server_init(+Options:dict) is det.
@@ -56,6 +58,7 @@ init_option(Options, Key, Value) :-
 api_module(scenario).
 api_module(timeline).
 api_module(projection).
+api_module(uncertainty).
 
 % The query language is safe to call from sandboxed queries: it only changes
 % the server's own scenario and timeline stores and runs simulations.
@@ -73,9 +76,16 @@ sandbox:safe_primitive(scenario:delete_scenario(_)).
 sandbox:safe_primitive(scenario:current_scenario(_)).
 sandbox:safe_primitive(projection:make_projection(_, _, _, _)).
 sandbox:safe_primitive(projection:make_projection(_, _, _, _, _)).
+sandbox:safe_primitive(uncertainty:wilson_interval(_, _, _, _)).
 sandbox:safe_primitive(projection:simulate(_, _, _, _, _)).
 sandbox:safe_primitive(projection:translate(_, _)).
 sandbox:safe_primitive(projection:projection_program(_, _)).
 sandbox:safe_primitive(projection:projection_physics_setting(_, _, _)).
 sandbox:safe_primitive(timeline:timeline_create(_, _)).
 sandbox:safe_primitive(timeline:timeline_remove(_)).
+
+% A probability's condition is the query's own goal: safe if it is.
+:- multifile sandbox:safe_meta/2.
+
+sandbox:safe_meta(uncertainty:outcome_probability(_, _, _, _, _, Condition, _),
+                  [Condition]).
