@@ -143,6 +143,33 @@ def test_table_i_through_the_ray_backend_gives_the_local_backends_timelines(ray_
     assert outcomes[(5, 0.0)] == 'ok'
 
 
+SAMPLED = '''copy_scenario(grasping, S),
+    scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)),
+    scenario_set_property(S, egg1, breaking_force, normal(10, 1.5)),
+    outcome_probability(S, grasp_object, [(F, force, [2, 9])], [samples(6), seed(3)], TL,
+                        ( \\+ occurs(break, _, TL), \\+ occurs(slip, _, TL) ), P),
+    findall([Mu, B, O], ( make_projection(S, grasp_object, [(_, force, [F])],
+                                     [samples(6), seed(3)], TL2),
+                      quantity(sampled(egg1, friction), Mu, TL2),
+                      quantity(sampled(egg1, breaking_force), B, TL2),
+                      ( occurs(break, _, TL2) -> O = break ; occurs(slip, _, TL2) -> O = slip
+                      ; O = ok ) ), Worlds)'''
+
+
+def test_worlds_drawn_from_a_belief_are_the_same_on_both_backends(ray_query, call):
+    r = ray_query.wait(ray_query(SAMPLED, timeout=TABLE_TIMEOUT))
+    assert r.ok, r.message
+    local = call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=SAMPLED,
+                                         timeout=TABLE_TIMEOUT), timeout=TABLE_TIMEOUT + 60.0)
+    assert local.ok, local.message
+    strip = ('TL', 'S')
+    made = [{k: v for k, v in s.items() if k not in strip} for s in solutions(r)]
+    assert made == [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    assert len(made) == 2 and all(len(s['Worlds']) == 6 for s in made)
+    # both forces met the same six eggs
+    assert [w[0] for w in made[0]['Worlds']] == [w[0] for w in made[1]['Worlds']]
+
+
 def test_an_actor_killed_mid_query_fails_it_as_worker_crashed_and_the_node_serves_on(
         ray_query):
     text = 'simulate(grasping, grasp_object, [(_, force, [4.2]), (_, position, [0.01])], 60, L)'
