@@ -141,16 +141,19 @@ encode(Bindings, Options, Json) :-
 prepare(M, Text0, Options, Goal, Bindings) :-
     must_be(text, Text0),
     text_to_string(Text0, Text),
-    term_string(Goal, Text, [ variable_names(Bindings),
-                              syntax_errors(error),
-                              module(M)
-                            ]),
-    (   Goal == end_of_file
+    term_string(Goal0, Text, [ variable_names(Bindings),
+                               syntax_errors(error),
+                               module(M)
+                             ]),
+    (   Goal0 == end_of_file
     ->  throw(error(syntax_error(empty_query), string(Text, 0)))
     ;   true
     ),
     no_trailing_text(Text),
-    must_be(callable, Goal),
+    must_be(callable, Goal0),
+    % As the toplevel does: dicts' functional notation (P.low) becomes calls.
+    % The sandbox checks what is called, the expanded goal.
+    @(expand_goal(Goal0, Goal), M),
     (   sandboxed(Options)
     ->  safe_goal(M:Goal),
         (   sub_term(Q, Goal), nonvar(Q), Q = _:S, callable(S),

@@ -8,6 +8,13 @@ test(solutions_in_order, Bs == ["{\"X\":\"a\"}", "{\"X\":1}"]) :-
     findall(B, member(_{status: "solution", bindings: B}, Rs), Bs).
 test(trailing_full_stop_allowed, S == "solution") :-
     sols("X = 1.", [R]), get_dict(status, R, S).
+test(dict_functional_notation) :-
+    sols("P = _{a: 1, b: 2}, X = P.a, Y is P.b * 1", [R]),
+    get_dict(bindings, R, B),
+    once(sub_string(B, _, _, _, "\"X\":1")),
+    once(sub_string(B, _, _, _, "\"Y\":2")).
+test(dict_expansion_is_checked, K == "permission_error") :-
+    sols("P = _{a: 'true'}, shell(P.a)", [R]), get_dict(kind, R, K).
 test(no_solution, Rs == []) :-
     sols("fail", Rs).
 test(syntax_error_has_position) :-
