@@ -141,8 +141,9 @@ wilson_interval(K, N, Low, High) :-
     Denominator is 1 + Z2 / N,
     Centre is (P + Z2 / (2 * N)) / Denominator,
     Half is Z * sqrt(P * (1 - P) / N + Z2 / (4 * N * N)) / Denominator,
-    Low is max(0.0, Centre - Half),
-    High is min(1.0, Centre + Half).
+    % At 0 and N the bound is exactly 0 or 1, not what rounding leaves of it.
+    (   K =:= 0 -> Low = 0.0 ; Low is max(0.0, Centre - Half) ),
+    (   K =:= N -> High = 1.0 ; High is min(1.0, Centre + Half) ).
 
 :- multifile prolog:message//1.
 

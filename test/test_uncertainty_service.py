@@ -140,3 +140,31 @@ def test_a_dangerous_condition_is_refused_before_anything_runs(call):
         [samples(2)], TL, shell('touch /tmp/projection_server_pwned'), P)''', timeout=30.0)
     assert not r.ok and r.error_kind == 'permission_error', (r.error_kind, r.message)
     assert not os.path.exists('/tmp/projection_server_pwned')
+
+
+def test_table_i_for_an_egg_whose_friction_lies_between_0_2_and_0_4(call):
+    sols = solutions(call, f'''copy_scenario(grasping, S),
+        scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)),
+        outcome_probability(S, grasp_object, [(Pos, position, [-0.02, 0.00, 0.02]),
+                                              (F, force, [1, 3, 5, 7, 9, 11])],
+                            [samples(10), seed(2)], TL, {OK}, P)''')
+    table = {(s['Pos'], s['F']): dict(s['P']['dict']) for s in sols}
+    assert len(table) == 18 and all(p['n'] == 10 for p in table.values())
+    for p in table.values():
+        assert p['low'] <= p['p'] <= p['high']
+    for pos in (-0.02, 0.0, 0.02):
+        assert table[(pos, 1)]['p'] == 0.0      # slips on every egg
+        assert table[(pos, 11)]['p'] == 0.0     # breaks every shell of 10 N
+        assert table[(pos, 5)]['p'] == 1.0
+
+
+def test_the_robust_grip_is_the_gentlest_force_proven_at_0_9(call):
+    sols = solutions(call, f'''copy_scenario(grasping, S),
+        scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)),
+        once(( outcome_probability(S, grasp_object, [(Pos, position, [0.0]),
+                                                     (F, force, [1, 3, 5, 7, 9, 11])],
+                                   [samples(35), seed(1), decide(0.9)], TL, {OK}, P),
+               P.low >= 0.9 ))''')
+    (robust,) = sols
+    p = dict(robust['P']['dict'])
+    assert robust['F'] in (3, 5) and p['n'] == 35 and p['low'] >= 0.9, robust
