@@ -3,7 +3,7 @@
             wilson_interval/4           % +Successes, +N, -Low, -High
           ]).
 :- autoload(library(error), [must_be/2, domain_error/2]).
-:- autoload(library(lists), [member/2, select/3]).
+:- autoload(library(lists), [member/2, select/3, sum_list/2]).
 :- autoload(library(option), [option/2, option/3]).
 :- use_module(library(janus), [py_call/2]).
 :- use_module(projection, [make_projection/5, parameter_values/2]).
@@ -101,7 +101,7 @@ sample(Scenario, Program, Fixed, Options, TL, Condition, Rounds, K0, N0, K, N) :
     ->  K = K0, N = N0
     ;   decided(Decide, K0, N0)
     ->  K = K0, N = N0
-    ;   round_size(Decide, Workers, Max, Size),
+    ;   round_size(Decide, Workers, K0, N0, Max, Size),
         To is min(Max, N0 + Size),
         findall(Hit, ( make_projection(Scenario, Program, Fixed,
                                        [worlds(N0, To)|Options], TL),
@@ -112,11 +112,33 @@ sample(Scenario, Program, Fixed, Options, TL, Condition, Rounds, K0, N0, K, N) :
         sample(Scenario, Program, Fixed, Options, TL, Condition, Rounds, K1, To, K, N)
     ).
 
-% Without a threshold every world runs in one round; with one, two worlds
-% per worker, so that a decided parametrization stops soon.
-round_size(none, _, Max, Max) :- !.
-round_size(decide(_), Workers, _, Size) :-
-    Size is max(2, 2 * Workers).
+% Without a threshold every world runs in one round.  With one, a round is
+% two worlds per worker, or, if more, the fewest worlds that could decide the
+% way the parametrization leans: one of 4 worlds without a failure needs 31
+% more to prove 0.9, and fewer cannot stop it unless it fails.
+round_size(none, _, _, _, Max, Max) :- !.
+round_size(decide(T), Workers, K, N, Max, Size) :-
+    Left is Max - N,
+    (   N > 0, K / N >= T
+    ->  Lean = up
+    ;   Lean = down
+    ),
+    least_to_decide(Lean, T, K, N, 1, Left, Least),
+    Size is max(2 * Workers, Least).
+
+% least_to_decide(+Lean, +T, +K, +N, +M, +Left, -Least): the fewest more
+% worlds M (at most Left) after which K/N is decided if all of them succeed
+% (Lean = up) or all fail (down).
+least_to_decide(Lean, T, K, N, M, Left, Least) :-
+    N1 is N + M,
+    (   Lean == up -> K1 is K + M ; K1 = K ),
+    (   M >= Left
+    ->  Least = Left
+    ;   decided(decide(T), K1, N1)
+    ->  Least = M
+    ;   M1 is M + 1,
+        least_to_decide(Lean, T, K, N, M1, Left, Least)
+    ).
 
 decided(decide(T), K, N) :-
     N > 0,

@@ -29,4 +29,17 @@ test(threshold_is_a_probability, error(domain_error(probability_threshold, 1))) 
 test(worlds_are_its_own, error(domain_error(probability_option, worlds))) :-
     outcome_probability(grasping, grasp_object, [], [worlds(0, 3)], _, true, _).
 
+test(a_clean_start_needs_31_more_to_prove_0_9, M == 31) :-
+    uncertainty:least_to_decide(up, 0.9, 4, 4, 1, 100, M).
+test(one_failure_decides_below_at_once, M == 1) :-
+    uncertainty:least_to_decide(down, 0.9, 0, 0, 1, 100, M).
+test(rounds_are_capped_by_what_is_left, M == 5) :-
+    uncertainty:least_to_decide(up, 0.9, 4, 4, 1, 5, M).
+test(round_of_the_workers_at_least, S == 4) :-
+    uncertainty:round_size(decide(0.9), 2, 0, 0, 35, S).
+test(round_of_what_can_decide, S == 31) :-
+    uncertainty:round_size(decide(0.9), 2, 4, 4, 35, S).
+test(round_of_a_failing_one_is_the_workers, S == 4) :-
+    uncertainty:round_size(decide(0.9), 2, 3, 4, 35, S).
+
 :- end_tests(uncertainty).
