@@ -7,6 +7,7 @@
 :- use_module(scenario).
 :- use_module(timeline).
 :- use_module(projection).
+:- use_module(search).
 :- autoload(library(error), [must_be/2]).
 :- autoload(library(lists), [member/2]).
 
@@ -20,6 +21,7 @@ module `user`:
   - scenarios (scenario.pl): create_scenario/1, add_to_scenario/2, ...
   - projection (projection.pl): make_projection/4,5, simulate/5, translate/2
   - timelines (timeline.pl, temporal.pl): holds/2,3, occurs/2,3, Allen's relations
+  - search (search.pl): outcome_boundary/7, best_parametrization/8
 */
 
 %!  projection_server_init(+Options:dict) is det.
@@ -56,6 +58,7 @@ init_option(Options, Key, Value) :-
 api_module(scenario).
 api_module(timeline).
 api_module(projection).
+api_module(search).
 
 % The query language is safe to call from sandboxed queries: it only changes
 % the server's own scenario and timeline stores and runs simulations.
@@ -79,3 +82,7 @@ sandbox:safe_primitive(projection:projection_program(_, _)).
 sandbox:safe_primitive(projection:projection_physics_setting(_, _, _)).
 sandbox:safe_primitive(timeline:timeline_create(_, _)).
 sandbox:safe_primitive(timeline:timeline_remove(_)).
+% The searches call their Condition/Constraint: safe when that goal is (library(sandbox)
+% checks the meta arguments).
+sandbox:safe_meta_predicate(search:outcome_boundary/7).
+sandbox:safe_meta_predicate(search:best_parametrization/8).
