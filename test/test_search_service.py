@@ -1,10 +1,12 @@
 """Adaptive search through the real service (prolog/search.pl): Table I's force boundaries
 by bisection against a fine grid, the best push of a box that stays on the table, progress
-on ~/project, and the errors that leave the node serving."""
+on ~/project, and the errors that leave the node serving. The module's node has two
+projection workers, so that rounds of probes and batches of trials run on both."""
 
 from __future__ import annotations
 
 import json
+import signal
 import time
 
 from projection_interfaces.srv import PrologQuery
@@ -29,6 +31,55 @@ PUSH = '''create_scenario(S), add_to_scenario(S, [kitchen_env, pr2_robot,
                          \\+ occurs(drop(box1), _, TL), displacement(box1), Best),
     ( occurs(drop(box1), _, TL) -> Fell = yes ; Fell = no ),
     quantity(displacement(box1), Moved, TL)'''
+
+
+NAME = 'search_server'
+WORKERS = 2   # a batch of trials, or a round of probes, runs on both at once
+
+
+@pytest.fixture(scope='module')
+def search_server(rclpy_context, tmp_path_factory):
+    """A node of this module's own with two projection workers."""
+    from projection_server.client.launcher import node_command, NodeProcess
+
+    log = tmp_path_factory.mktemp('search_node') / 'node.log'
+    params = {'default_timeout': 5.0, 'max_engines': 4, 'projection_workers': WORKERS,
+              'bag_dir': str(tmp_path_factory.mktemp('search_bags'))}
+    with NodeProcess(node_command(NAME, params), log) as proc:
+        proc.wait_for_service(f'/{NAME}/query', timeout=60.0)
+        yield f'/{NAME}'
+    assert proc.returncode in (0, -signal.SIGINT), log.read_text()
+
+
+@pytest.fixture(scope='module')
+def call(search_server, node):
+    """call(srv_type, 'query', request) -> response, over this module's node."""
+    import rclpy
+
+    clients = {}
+
+    def _call(srv_type, service, request, timeout=30.0):
+        if service not in clients:
+            clients[service] = node.create_client(srv_type, f'{search_server}/{service}')
+            assert clients[service].wait_for_service(timeout_sec=20.0)
+        future = clients[service].call_async(request)
+        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+        assert future.done(), f'no answer from {service}'
+        return future.result()
+
+    yield _call
+    for c in clients.values():
+        node.destroy_client(c)
+
+
+@pytest.fixture(scope='module')
+def client(search_server):
+    from projection_server.client import PrologClient
+
+    c = PrologClient(search_server)
+    assert c.wait_for_server(20.0)
+    yield c
+    c.close()
 
 
 def plain(value):
@@ -179,7 +230,7 @@ def test_the_same_seed_gives_the_same_best_and_another_seed_searches_elsewhere(c
     assert [s['Best'] for s in first] != [s['Best'] for s in other]
 
 
-def test_several_range_parameters_run_each_batch_on_all_workers(client):
+def test_with_several_range_parameters_every_trial_reports_to_the_querys_action(client):
     from projection_server.client.project_task import TaskResult
 
     feedback = []
