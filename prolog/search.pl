@@ -265,21 +265,26 @@ truth(Timeline, TL, Goal, Holds) :-
 %   The searched variables are bound to Best's values and Timeline to its
 %   timeline.  No feasible projection with an Objective value: no solution.
 %
-%   The same seed, parameters and options give the same trials and Best.
+%   The same seed, batch size, parameters and options give the same trials
+%   and Best.
 %   Params other than the searched ones are enumerated: one search per
 %   combination of their values, on backtracking.  Options:
 %
 %     - max_projections(+N): the projections one search makes (default
 %       32, at least 1);
 %     - seed(+K): the sampler's seed, an integer (default 0);
+%     - batch(+B): the trials asked for before any is told (default: the
+%       number of simulation workers; give it to get the same trials on
+%       a node with another number of workers);
 %     - the options of make_projection/5, passed on to each of its calls.
 %
 %   @error domain_error(range_parameters, Params) if no parameter of Params
 %          is `range(Low, High)`
 %   @error domain_error(search_range, range(Low, High)) unless Low < High
 %   @error domain_error(search_option, Option) for outcome_boundary/7's
-%          options; domain_error(max_projections, N) or type_error(integer,
-%          K) for values out of their domain; make_projection/5's
+%          options; domain_error(max_projections, max_projections(N)),
+%          domain_error(batch, batch(B)) or type_error(integer, K) for
+%          values out of their domain; make_projection/5's
 %          domain_error(projection_option, O) for any other unknown option
 %   @error type_error(number, Value) for an Objective whose value is no number
 %   @error uninstantiation_error(X) for a bound Timeline or searched variable
@@ -300,11 +305,16 @@ best_parametrization(Scenario, Program, Params, Options, Timeline, Constraint, O
     ),
     option_value(max_projections, Own, 32, Max),
     option_value(seed, Own, 0, Seed),
+    option_value(batch, Own, workers, Batch),
     check_integer(max_projections, Max, 1),
     must_be(integer, Seed),
+    (   Batch == workers
+    ->  py_call('projection_server.projection':workers(), Workers)
+    ;   check_integer(batch, Batch, 1),
+        Workers = Batch
+    ),
     check_ends(Program, Searched),
     fixed_combination(Fixed, FixedParams),
-    py_call('projection_server.projection':workers(), Workers),
     maplist([searched(_, N, L, H), [N, L, H]]>>true, Searched, Space),
     Run = run(Scenario, Program, Searched, FixedParams, Pass, Timeline, Constraint,
               Objective),
@@ -509,6 +519,7 @@ search_option(boundary, max_projections(_)).
 search_option(boundary, coarse(_)).
 search_option(best, max_projections(_)).
 search_option(best, seed(_)).
+search_option(best, batch(_)).
 
 boundary_options(Options, Own, Pass) :-
     split_options(boundary, Options, Own, Pass).
@@ -592,4 +603,4 @@ prolog:message(error(domain_error(max_projections(at_least(K)), max_projections(
       'give a larger budget or a smaller coarse(K)' ].
 prolog:message(error(domain_error(search_option, Option), _)) -->
     [ '~q is not an option of this search (outcome_boundary/7: tolerance, '-[Option],
-      'max_projections, coarse; best_parametrization/8: max_projections, seed)' ].
+      'max_projections, coarse; best_parametrization/8: max_projections, seed, batch)' ].

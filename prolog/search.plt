@@ -107,6 +107,10 @@ test(a_seed_is_an_integer, error(type_error(integer, a))) :-
     best_parametrization(grasping, grasp_object, [(_, force, range(1, 9))], [seed(a)], _,
                          true, max_load(egg1), _).
 
+test(a_batch_is_at_least_one_trial, error(domain_error(batch, batch(0)))) :-
+    best_parametrization(grasping, grasp_object, [(_, force, range(1, 9))], [batch(0)], _,
+                         true, max_load(egg1), _).
+
 test(a_bound_timeline_is_an_error, error(uninstantiation_error(tl))) :-
     outcome_boundary(grasping, grasp_object, [(_, force, range(1, 9))], [], tl, true, _).
 
