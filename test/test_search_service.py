@@ -284,3 +284,28 @@ def test_a_search_past_the_querys_time_limit_is_a_timeout_and_the_node_serves_on
     while json.loads(call(Trigger, 'ping', Trigger.Request()).message)['engines']:
         assert time.monotonic() < deadline
         time.sleep(0.1)
+
+
+def test_a_cancelled_search_in_threads_stops_and_frees_its_engine(client, call):
+    from std_srvs.srv import Trigger
+    from projection_server.client import PrologQueryError
+    from projection_server.client.project_task import TaskResult
+
+    feedback = []
+    task = client.project(f'''best_parametrization(grasping, grasp_object,
+        [(F, force, range(1.1, 10.9)), (P, position, range(-0.018, 0.018))],
+        [max_projections(200), seed(5)], TL, {OK}, max_load(egg1), Best)''',
+                          timeout=SIM_TIMEOUT, feedback_callback=feedback.append)
+    deadline = time.monotonic() + SIM_TIMEOUT
+    while len(feedback) < 3 and not task.is_done():
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    assert task.cancel()
+    with pytest.raises(PrologQueryError) as info:
+        task.result(deadline=60.0)
+    assert task.status == TaskResult.CANCELED and info.value.kind == 'cancelled'
+    deadline = time.monotonic() + 20.0
+    while json.loads(call(Trigger, 'ping', Trigger.Request()).message)['engines']:
+        assert time.monotonic() < deadline
+        time.sleep(0.1)
+    assert solutions(call, 'X = still_serving') == [{'X': 'still_serving'}]
