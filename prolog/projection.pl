@@ -7,6 +7,7 @@
             projection_physics_setting/3, % ?Program, ?Name, -Setting:dict
             projection_default_timeout/1, % -Seconds
             with_query_context/2,       % +Context:dict, :Goal
+            current_query_context/1,    % -Context:dict
             parameter_values/2          % +Range, -Values:list(number)
           ]).
 :- autoload(library(apply), [maplist/3, foldl/4]).
@@ -150,6 +151,10 @@ report_progress(step(I, Total, Program, Values), Log, Timeline) :-
 %   cancels them with the query) and report their progress to the query Id.
 %   The query service runs each query's goal this way (query_service.pl);
 %   outside it, projections have no owner.
+%
+%   current_query_context(-Context) is semidet: the context of the query
+%   this thread runs, if it runs one (to run a query's goals in threads of
+%   their own as that query).
 
 :- thread_local current_query_context/1.
 

@@ -12,7 +12,8 @@
 :- use_module(library(janus), [py_call/2]).
 :- autoload(library(thread), [concurrent/3]).
 :- use_module(projection,
-              [make_projection/5, projection_program/2, with_query_context/2]).
+              [make_projection/5, projection_program/2, with_query_context/2,
+               current_query_context/1, parameter_values/2]).
 :- use_module(timeline, [quantity/3, timeline_exists/1]).
 
 :- meta_predicate
@@ -354,7 +355,7 @@ run_trials(Run, Trials, Results) :-
     maplist(trial_result(Name, Outcomes), Trials, Results).
 run_trials(Run, Trials, Results) :-
     maplist(trial_alone(Run), Trials, Results, Goals0),
-    (   catch(projection:current_query_context(Context), _, fail)
+    (   current_query_context(Context)
     ->  maplist([G, with_query_context(Context, G)]>>true, Goals0, Goals)
     ;   Goals = Goals0
     ),
@@ -468,7 +469,7 @@ search_params([Param|Params], Searched, Fixed) :-
         must_be_unbound(Var),
         Searched = [searched(Var, Name, Low, High)|Searched1],
         Fixed = Fixed1
-    ;   range_values(Range, Values),
+    ;   parameter_values(Range, Values),
         Fixed = [fixed(Var, Name, Values)|Fixed1],
         Searched = Searched1
     ),
@@ -490,19 +491,6 @@ check_ends(Program, Searched) :-
            ;   existence_error(program_parameter, Program:Name)
            )).
 check_ends(_, _).
-
-% range_values(+Range, -Values): as make_projection/5 enumerates them.
-range_values(range(Low, High, Step), Values) :- !,
-    must_be(number, Low),
-    must_be(number, High),
-    check_number(step, Step, 0, exclusive),
-    N is floor((High - Low) / Step + 1.0e-9),
-    numlist(0, N, Is),
-    maplist([I, V]>>rounded(Low + I * Step, V), Is, Values).
-range_values(Values, Values) :-
-    is_list(Values), Values \== [], !.
-range_values(Range, _) :-
-    type_error(parameter_range, Range).
 
 % fixed_combination(+Fixed, -Params): on backtracking, each combination of the fixed
 % parameters' values, the first changing slowest, as make_projection/5 parameters of

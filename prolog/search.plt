@@ -123,7 +123,8 @@ test(the_other_parameters_are_enumerated, Combinations == [1-a, 1-b, 3-a, 3-b]) 
     findall(X-Y, search:fixed_combination(Fixed, _), Combinations).
 
 test(a_stepped_range_is_enumerated_as_make_projection_does, Values == [0.1, 0.2, 0.3]) :-
-    search:range_values(range(0.1, 0.3, 0.1), Values).
+    search:search_params([(_, force, range(0.1, 0.3, 0.1)), (_, position, range(0, 1))],
+                         _, [fixed(_, force, Values)]).
 
 test(errors_have_messages) :-
     forall(member(E, [ domain_error(one_range_parameter, [a, b]),
