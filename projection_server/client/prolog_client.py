@@ -164,10 +164,11 @@ class PrologClient:
             self._action = ActionClient(self._node, Project, f'{self.server}/project')
             # rclpy's ActionClient drops a goal's feedback once its result is in, and the
             # last projection's feedback often travels with the result: the tasks read
-            # the action's feedback topic themselves (with the ActionClient's QoS).
+            # the action's feedback topic themselves, with a history as deep as the
+            # server's: a burst of cached projections' feedback must not overwrite itself.
             self._node.create_subscription(
                 Project.Impl.FeedbackMessage, f'{self.server}/project/_action/feedback',
-                self._on_project_feedback, QoSProfile(depth=10))
+                self._on_project_feedback, QoSProfile(depth=1000))
             if not self._action.wait_for_server(timeout_sec=self._service_timeout):
                 raise PrologClientError(f'action {self.server}/project is not available; '
                                         + server_hint(self.server))

@@ -15,6 +15,7 @@ from typing import Any, TYPE_CHECKING
 
 from projection_interfaces.action import Project
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.qos import QoSProfile
 
 from projection_server.service import progress
 from projection_server.service.queries import ALL, ONCE, QueryAnswer, QueryError
@@ -27,6 +28,9 @@ if TYPE_CHECKING:
 __all__ = ['ProjectActionServer']
 
 _MODES = {Project.Goal.ALL_SOLUTIONS: ALL, Project.Goal.ONCE: ONCE}
+# Cached projections report within milliseconds of each other: a history of rclpy's default
+# 10 would drop the oldest feedback of a burst before a busy client has taken it.
+FEEDBACK_DEPTH = 1000
 
 
 class ProjectActionServer:
@@ -40,7 +44,8 @@ class ProjectActionServer:
         self._server = ActionServer(node, Project, '~/project', self._execute,
                                     goal_callback=self._on_goal,
                                     cancel_callback=self._on_cancel,
-                                    callback_group=callback_group)
+                                    callback_group=callback_group,
+                                    feedback_pub_qos_profile=QoSProfile(depth=FEEDBACK_DEPTH))
 
     def destroy(self) -> None:
         self._server.destroy()
