@@ -509,6 +509,10 @@ search_option(best, max_projections(_)).
 search_option(best, seed(_)).
 search_option(best, batch(_)).
 
+% Worlds drawn from a belief: a search's condition is of one projection.
+belief_option(samples(_)).
+belief_option(worlds(_, _)).
+
 boundary_options(Options, Own, Pass) :-
     split_options(boundary, Options, Own, Pass).
 
@@ -526,6 +530,9 @@ own_option(_, Option) :-
     instantiation_error(Option).
 own_option(Search, Option) :-
     search_option(Search, Option), !.
+own_option(_, Option) :-
+    belief_option(Option), !,
+    domain_error(search_option, Option).
 own_option(_, Option) :-
     search_option(_, Option), !,
     domain_error(search_option, Option).
@@ -589,6 +596,10 @@ prolog:message(error(domain_error(search_range, range(Low, High)), _)) -->
 prolog:message(error(domain_error(max_projections(at_least(K)), max_projections(N)), _)) -->
     [ 'max_projections(~w) is smaller than the coarse pass, ~w projections: '-[N, K],
       'give a larger budget or a smaller coarse(K)' ].
+prolog:message(error(domain_error(search_option, Option), _)) -->
+    { belief_option(Option) }, !,
+    [ '~q: a search projects the nominal world, one projection per value; '-[Option],
+      'outcome_probability/7 answers over the worlds of a belief' ].
 prolog:message(error(domain_error(search_option, Option), _)) -->
     [ '~q is not an option of this search (outcome_boundary/7: tolerance, '-[Option],
       'max_projections, coarse; best_parametrization/8: max_projections, seed, batch)' ].

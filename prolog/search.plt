@@ -126,6 +126,11 @@ test(a_stepped_range_is_enumerated_as_make_projection_does, Values == [0.1, 0.2,
     search:search_params([(_, force, range(0.1, 0.3, 0.1)), (_, position, range(0, 1))],
                          _, [fixed(_, force, Values)]).
 
+test(samples_are_not_a_search_option, error(domain_error(search_option, samples(5)))) :-
+    search:boundary_options([samples(5), tolerance(0.1)], _, _).
+test(worlds_are_not_a_search_option, error(domain_error(search_option, worlds(0, 2)))) :-
+    search:best_options([worlds(0, 2)], _, _).
+
 test(errors_have_messages) :-
     forall(member(E, [ domain_error(one_range_parameter, [a, b]),
                        domain_error(range_parameters, []),
