@@ -25,6 +25,8 @@ bench: setup
 	@tools/with_env.sh python bench/pipeline_overhead.py
 	@tools/with_env.sh python bench/projection_throughput.py
 	@tools/with_env.sh python bench/flat_memory.py --solutions 200
+	@tools/with_env.sh python bench/search_cost.py
+	@tools/with_env.sh python bench/robust_answer.py
 
 reproduce: setup
 	@tools/with_env.sh projection_reproduce --out reports $(ARGS)
