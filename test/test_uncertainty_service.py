@@ -168,3 +168,14 @@ def test_the_robust_grip_is_the_gentlest_force_proven_at_0_9(call):
     (robust,) = sols
     p = dict(robust['P']['dict'])
     assert robust['F'] in (3, 5) and p['n'] == 35 and p['low'] >= 0.9, robust
+
+
+def test_a_plan_is_projected_over_a_belief_as_a_named_program_is(call):
+    plan = '''plan([move_to(egg1, [-0.09, 0, 0], [orientation(side(0)), speed(2.0)]),
+                   move_to(egg1, [0, 0, 0], [speed(0.15)]), close_gripper(F), wait(0.3),
+                   move_by([0, 0, 0.1], [speed(0.1)]), wait(1.0)])'''
+    sols = solutions(call, f'''copy_scenario(grasping, S),
+        scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)),
+        outcome_probability(S, {plan}, [(F, force, [1, 5])], [samples(4), seed(1)], TL,
+                            {OK}, P)''')
+    assert {s['F']: dict(s['P']['dict'])['p'] for s in sols} == {1: 0.0, 5: 1.0}
