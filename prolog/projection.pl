@@ -88,7 +88,8 @@ on that projection's timeline:
 %   and any numbers as values.  Options is a list of
 %
 %     - timeout(+Seconds): the wall-clock limit of one simulation
-%       (default: projection_default_timeout/1);
+%       (default: projection_default_timeout/1, times the factors by which
+%       physics(D) raises the program's rate_hz and solver_iterations);
 %     - physics(+Dict): engine settings of these projections instead of the
 %       program's (projection_physics_setting/3), e.g.
 %       `_{rate_hz: 960, solver_iterations: 400}`;
@@ -306,9 +307,6 @@ projection_options(_, Timeout, Timeout, _{}, nominal) :-
 projection_options(Program, Options, Timeout, Physics, Worlds) :-
     must_be(list, Options),
     maplist(check_option, Options),
-    projection_default_timeout(Default),
-    option(timeout(Timeout), Options, Default),
-    must_be_positive(Timeout),
     worlds_option(Options, Worlds),
     option(physics(Physics), Options, _{}),
     (   is_dict(Physics)
@@ -316,7 +314,28 @@ projection_options(Program, Options, Timeout, Physics, Worlds) :-
     ;   type_error(dict, Physics)
     ),
     dict_pairs(Physics, _, Pairs),
-    maplist(check_physics_setting(Program), Pairs).
+    maplist(check_physics_setting(Program), Pairs),
+    (   option(timeout(Timeout), Options)
+    ->  true
+    ;   default_timeout(Program, Pairs, Timeout)
+    ),
+    must_be_positive(Timeout).
+
+% default_timeout(+Program, +Physics, -Seconds): projection_default_timeout/1,
+% times as many more steps and solver iterations as Physics asks of the
+% program's own: a 4x finer pour takes about 16x as long as the pour.
+default_timeout(Program, Physics, Timeout) :-
+    projection_default_timeout(Default),
+    foldl(cost_factor(Program), Physics, 1, Factor),
+    Timeout is Default * Factor.
+
+cost_factor(Program, Name-Value, F0, F) :-
+    (   memberchk(Name, [rate_hz, solver_iterations]),
+        projection_physics_setting(Program, Name, Setting),
+        get_dict(default, Setting, Own), Own > 0
+    ->  F is F0 * max(1, Value / Own)
+    ;   F = F0
+    ).
 
 check_option(Option) :-
     var(Option), !,

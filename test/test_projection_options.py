@@ -1,0 +1,42 @@
+"""make_projection's options as Prolog reads them, in this process's SWI-Prolog (janus): the
+default time limit of a projection grows with the physics a query asks for."""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(scope='module')
+def prolog():
+    from projection_server.service import prolog_bridge
+
+    prolog_bridge.load()
+    import janus_swi
+
+    return janus_swi
+
+
+def timeout(prolog, program: str, options: str) -> float:
+    return prolog.query_once(
+        f'term_string(_O, "{options}"), projection:projection_options({program}, _O, T, _, _)'
+    )['T']
+
+
+def test_the_default_limit_is_60_s(prolog):
+    assert timeout(prolog, 'grasp_object', '[]') == 60
+
+
+def test_finer_physics_multiply_the_default_limit_by_their_cost(prolog):
+    assert timeout(prolog, 'grasp_object',
+                   '[physics(_{rate_hz: 960, solver_iterations: 400})]') == 60 * 4 * 4
+    # the program's own settings are the base: the pour runs with fewer iterations
+    own = prolog.query_once('projection_physics_setting(pour, solver_iterations, S), '
+                            'get_dict(default, S, D)')['D']
+    assert timeout(prolog, 'pour',
+                   f'[physics(_{{rate_hz: 960, solver_iterations: {4 * own}}})]') == 60 * 16
+    assert timeout(prolog, 'plan', '[physics(_{rate_hz: 480})]') == 120
+
+
+def test_coarser_physics_keep_the_default_and_a_given_limit_is_kept(prolog):
+    assert timeout(prolog, 'grasp_object', '[physics(_{rate_hz: 120})]') == 60
+    assert timeout(prolog, 'grasp_object', '[timeout(5), physics(_{rate_hz: 960})]') == 5
