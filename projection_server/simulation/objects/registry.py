@@ -100,15 +100,14 @@ class ObjectClass:
                                for p in self.properties]}
 
 
-_CLASSES: dict[str, ObjectClass] = {}
+_CLASSES: plugins.Registry[ObjectClass] = plugins.Registry(
+    ENTRY_POINTS, 'object class', ErrorKind.INVALID_SCENARIO,
+    'unknown class {name!r} (known: {known})')
 
 
 def register(cls: ObjectClass) -> ObjectClass:
     """Add ``cls`` to the registry (names are unique)."""
-    if cls.name in _CLASSES:
-        raise ValueError(f'object class {cls.name!r} is registered already')
-    _CLASSES[cls.name] = cls
-    return cls
+    return _CLASSES.register(cls)
 
 
 def get(name: str) -> ObjectClass:
@@ -117,24 +116,17 @@ def get(name: str) -> ObjectClass:
     Raises:
         ProjectionError: kind ``invalid_scenario`` for an unknown class.
     """
-    plugins.load(ENTRY_POINTS)
-    try:
-        return _CLASSES[name]
-    except (KeyError, TypeError):
-        raise ProjectionError(
-            ErrorKind.INVALID_SCENARIO,
-            f'unknown class {name!r} (known: {", ".join(sorted(_CLASSES))})') from None
+    return _CLASSES.get(name)
 
 
 def names() -> list[str]:
     """The registered classes' names, sorted."""
-    plugins.load(ENTRY_POINTS)
-    return sorted(_CLASSES)
+    return _CLASSES.names()
 
 
 def describe() -> list[dict[str, Any]]:
     """Every class as plain data, sorted by name."""
-    return [_CLASSES[name].describe() for name in names()]
+    return [_CLASSES.get(name).describe() for name in names()]
 
 
 

@@ -130,15 +130,13 @@ class Program:
                 'params': [p.describe() for p in self.params]}
 
 
-_PROGRAMS: dict[str, Program] = {}
+_PROGRAMS: plugins.Registry[Program] = plugins.Registry(
+    ENTRY_POINTS, 'program', ErrorKind.UNKNOWN_PROGRAM, 'no program {name!r} (known: {known})')
 
 
 def register(program: Program) -> Program:
     """Add ``program`` to the registry (names are unique)."""
-    if program.name in _PROGRAMS:
-        raise ValueError(f'program {program.name!r} is registered already')
-    _PROGRAMS[program.name] = program
-    return program
+    return _PROGRAMS.register(program)
 
 
 def get(name: str) -> Program:
@@ -147,20 +145,13 @@ def get(name: str) -> Program:
     Raises:
         ProjectionError: kind ``unknown_program``.
     """
-    plugins.load(ENTRY_POINTS)
-    try:
-        return _PROGRAMS[name]
-    except (KeyError, TypeError):
-        raise ProjectionError(
-            ErrorKind.UNKNOWN_PROGRAM,
-            f'no program {name!r} (known: {", ".join(sorted(_PROGRAMS))})') from None
+    return _PROGRAMS.get(name)
 
 
 def describe() -> list[dict[str, Any]]:
     """Every program with its formal parameters, for Prolog (sorted by name)."""
-    plugins.load(ENTRY_POINTS)
-    return [_PROGRAMS[name].describe() for name in sorted(_PROGRAMS)
-            if not _PROGRAMS[name].takes_plan]
+    return [program.describe() for program in map(get, _PROGRAMS.names())
+            if not program.takes_plan]
 
 
 def _plan_values(values: Mapping[str, Any]) -> dict[str, float]:

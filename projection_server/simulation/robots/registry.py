@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, TYPE_CHECKING
 
-from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.errors import ErrorKind
 from projection_server.simulation import plugins
 
 if TYPE_CHECKING:
@@ -41,7 +41,9 @@ class RobotModel:
     doc: str = ''
 
 
-_MODELS: dict[str, RobotModel] = {}
+_MODELS: plugins.Registry[RobotModel] = plugins.Registry(
+    ENTRY_POINTS, 'robot model', ErrorKind.INVALID_SCENARIO,
+    'unknown robot model {name!r} (known: {known})')
 
 
 def assets_dir() -> Path:
@@ -51,10 +53,7 @@ def assets_dir() -> Path:
 
 def register(model: RobotModel) -> RobotModel:
     """Add ``model`` to the registry (names are unique)."""
-    if model.name in _MODELS:
-        raise ValueError(f'robot model {model.name!r} is registered already')
-    _MODELS[model.name] = model
-    return model
+    return _MODELS.register(model)
 
 
 def get(name: str) -> RobotModel:
@@ -63,16 +62,9 @@ def get(name: str) -> RobotModel:
     Raises:
         ProjectionError: kind ``invalid_scenario`` for an unknown model.
     """
-    plugins.load(ENTRY_POINTS)
-    try:
-        return _MODELS[name]
-    except (KeyError, TypeError):
-        raise ProjectionError(
-            ErrorKind.INVALID_SCENARIO,
-            f'unknown robot model {name!r} (known: {", ".join(sorted(_MODELS))})') from None
+    return _MODELS.get(name)
 
 
 def names() -> list[str]:
     """The registered models' names, sorted."""
-    plugins.load(ENTRY_POINTS)
-    return sorted(_MODELS)
+    return _MODELS.names()
