@@ -86,12 +86,7 @@ knowledge_base_load :-
 %          left empty.
 
 knowledge_base_load(File0) :-
-    must_be(atom, File0),
-    absolute_file_name(File0, File),
-    (   exists_file(File)
-    ->  true
-    ;   existence_error(file, File0)
-    ),
+    existing_file(File0, File),
     kb_graph(G),
     with_mutex(knowledge_base, load_graph(G, File)).
 
@@ -108,12 +103,7 @@ knowledge_base_load(File0) :-
 %          then added.
 
 knowledge_base_add(File0) :-
-    must_be(atom, File0),
-    absolute_file_name(File0, File),
-    (   exists_file(File)
-    ->  true
-    ;   existence_error(file, File0)
-    ),
+    existing_file(File0, File),
     ensure_loaded_kb,
     uri_file_name(URL, File),
     load_options(URL, Options),
@@ -121,6 +111,15 @@ knowledge_base_add(File0) :-
                catch(rdf_load(File, Options),
                      E,
                      ( rdf_unload_graph(URL), throw(E) ))).
+
+% existing_file(+File0, -File): File0's absolute path, a file that exists.
+existing_file(File0, File) :-
+    must_be(atom, File0),
+    absolute_file_name(File0, File),
+    (   exists_file(File)
+    ->  true
+    ;   existence_error(file, File0)
+    ).
 
 % Whether the ontology is loaded is kept in a flag, not in a dynamic
 % predicate: the first query may come from inside a transaction/1 (see

@@ -22,6 +22,8 @@ from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
+from projection_server.geometry import quaternion_product
+
 if TYPE_CHECKING:
     from collections.abc import Iterable, Sequence
 
@@ -383,22 +385,13 @@ def _focus(scene: BagScene, target: str | None) -> np.ndarray:
     return np.mean([scene.pose(name, 0.0)[0] for name in moving], axis=0)
 
 
-def _quat_mul(q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    x1, y1, z1, w1 = q
-    x2, y2, z2, w2 = r
-    return np.array([w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-                     w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2])
-
-
 def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     qv = np.array([*v, 0.0])
     conj = np.array([-q[0], -q[1], -q[2], q[3]])
-    return _quat_mul(_quat_mul(q, qv), conj)[:3]
+    return quaternion_product(quaternion_product(q, qv), conj)[:3]
 
 
 def _compose(xyz: np.ndarray, quat: np.ndarray, parent_xyz: np.ndarray,
              parent_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The pose (xyz, quat) given in the parent frame, expressed in the parent's parent."""
-    return parent_xyz + _rotate(parent_quat, xyz), _quat_mul(parent_quat, quat)
+    return parent_xyz + _rotate(parent_quat, xyz), quaternion_product(parent_quat, quat)

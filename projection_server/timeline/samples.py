@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass, field
-import math
 from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.geometry import quaternion_of
 
 if TYPE_CHECKING:
     from collections.abc import Iterable, Iterator
@@ -187,7 +187,7 @@ class Poses:
         entry = self._frames[name]
         if entry[0] is None and entry[2] is not None:
             return tuple(float(v) for v in entry[2])
-        return _quaternion(_composed(entry)[1])
+        return quaternion_of(_composed(entry)[1])
 
     def items(self) -> Iterator[tuple[str, tuple[np.ndarray, np.ndarray]]]:
         """Every frame's name and pose."""
@@ -256,15 +256,3 @@ def _matrix(q: tuple[float, float, float, float]) -> np.ndarray:
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _quaternion(m: np.ndarray) -> tuple[float, float, float, float]:
-    """``(x, y, z, w)`` of rotation matrix ``m``, with w >= 0."""
-    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2,
-                      m[2, 1] - m[1, 2])
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2,
-                      m[0, 2] - m[2, 0])
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2,
-                      m[1, 0] - m[0, 1])
-    return (x, y, z, w)

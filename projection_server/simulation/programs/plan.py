@@ -50,6 +50,7 @@ from typing import Any, Callable, Sequence, TYPE_CHECKING
 import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.geometry import quaternion_product
 from projection_server.simulation.programs.registry import Program, register
 from projection_server.simulation.world import settle
 
@@ -118,9 +119,10 @@ def check_plan(plan: Any, params: Mapping[str, float]) -> list[dict[str, Any]]:
         _invalid(f'the plan names parameters that are not given: {", ".join(unknown)}')
     bound = plan_bound(steps)
     if bound > MAX_DURATION:
-        raise PlanTooLong(ErrorKind.INVALID_PARAMETERS, f'the plan may take up to {bound:.0f} s of simulated time, more than '
-                 f'{MAX_DURATION:.0f} s (motions are bounded as {MAX_TRAVEL} m at their '
-                 'speed)')
+        raise PlanTooLong(ErrorKind.INVALID_PARAMETERS,
+                          f'the plan may take up to {bound:.0f} s of simulated time, more '
+                          f'than {MAX_DURATION:.0f} s (motions are bounded as {MAX_TRAVEL} m '
+                          'at their speed)')
     return steps
 
 
@@ -490,12 +492,12 @@ class PlanTask:
             axis = np.asarray(step['axis'])
             half = step['angle'] / 2
             turn = np.array([*(axis * math.sin(half)), math.cos(half)])
-            return position, _multiply(turn, orientation)
+            return position, quaternion_product(turn, orientation)
         if 'orientation' in step:
             # A parallel gripper grasps alike turned half a turn about its fingers: the
             # other one if it is clearly nearer (by FLIP_MARGIN; a tie keeps the one asked).
             wanted = _orientation(*step['orientation'])
-            flipped = _multiply(wanted, np.array([0.0, 0.0, 1.0, 0.0]))
+            flipped = quaternion_product(wanted, np.array([0.0, 0.0, 1.0, 0.0]))
             if _angle(flipped, orientation) < _angle(wanted, orientation) - FLIP_MARGIN:
                 wanted = flipped
             orientation = wanted
@@ -527,16 +529,6 @@ class PlanTask:
         if elapsed >= GRIPPER_TIME:
             return True
         return bool(past) and abs(past[-1] - opening) < still
-
-
-def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The quaternion product a * b (x, y, z, w)."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz])
 
 
 PROGRAM = register(Program(

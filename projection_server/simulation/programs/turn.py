@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.geometry import quaternion_of
 from projection_server.simulation.programs.registry import Parameter, Program, register
 
 if TYPE_CHECKING:
@@ -117,8 +118,8 @@ class TurnPancake:
             # is at the front edge's height plus half its thickness, half its length back).
             axis = edge - np.array([self._edge[0], 0.0, self._edge[2]])
             rotation = _rx(roll) @ _ry(CARRY_PITCH)
-            return axis, _quaternion(rotation)
-        return edge - rotation @ self._edge, _quaternion(rotation)
+            return axis, quaternion_of(rotation)
+        return edge - rotation @ self._edge, quaternion_of(rotation)
 
     def control(self, physics: Physics) -> None:
         centre, quat = self.pose(physics.time)
@@ -138,18 +139,6 @@ class TurnPancake:
         phases = (('push', self.pushed), ('lift', self.levelled), ('flip', self.flipped))
         phase = next((name for name, end in phases if t < end), 'rest')
         return [(self._robot, -1, phase, self._object)]
-
-
-def _quaternion(m: np.ndarray) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of a rotation matrix."""
-    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2,
-                      m[2, 1] - m[1, 2])
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2,
-                      m[0, 2] - m[2, 0])
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2,
-                      m[1, 0] - m[0, 1])
-    return (x, y, z, w)
 
 
 PROGRAM = register(Program(

@@ -1,0 +1,31 @@
+"""Rotations as the simulation and the timeline both need them, without a physics client."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ['quaternion_of', 'quaternion_product']
+
+
+def quaternion_of(m: np.ndarray) -> tuple[float, float, float, float]:
+    """``(x, y, z, w)`` of rotation matrix ``m``, with w >= 0."""
+    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2,
+                      m[2, 1] - m[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2,
+                      m[0, 2] - m[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2,
+                      m[1, 0] - m[0, 1])
+    return (x, y, z, w)
+
+
+def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The quaternion product a * b, each ``(x, y, z, w)``."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz])
