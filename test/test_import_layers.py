@@ -16,7 +16,7 @@ import projection_server
 
 PACKAGE = Path(projection_server.__file__).parent
 STAGES = ['service', 'projection', 'workers', 'simulation', 'bags', 'timeline']
-SHARED = {'errors', 'canonical', 'settings', 'bags.schema', 'assets', 'geometry'}
+SHARED = {'errors', 'canonical', 'settings', 'bags.schema', 'assets', 'geometry', 'lifetime'}
 # Modules of a stage that are not named as the stage: the projection layer's beliefs (it
 # draws the worlds of uncertain properties before a job is made).
 MEMBERS = {'beliefs': 'projection'}

@@ -1,4 +1,5 @@
-"""Run a projection_server node in its own process, for the reproduction and the tests.
+"""Run a projection_server node in its own process, for scripts, the reproduction and the
+tests.
 
 >>> command = node_command('/projection_server', {'bag_dir': '/tmp/bags', 'max_engines': 4})
 >>> with NodeProcess(command, Path('/tmp/node.log')) as proc:   # after rclpy.init()
@@ -7,6 +8,20 @@
 
 The node's output goes to the log file; errors that say the node did not come up end with
 the tail of that log.
+
+The node does not outlive the script, whatever ends it, as ``ros2 launch``'s nodes do not
+outlive the launch:
+
+* the block ends (a return, an exception, Ctrl-C): the node is stopped (:meth:`stop`);
+* SIGTERM (systemd, ``docker stop``, a supervisor, a CI time limit): inside the block it is
+  handled like Ctrl-C, raising :class:`Terminated` (a ``KeyboardInterrupt``), so the block
+  ends and stops the node, and the script exits with status 143 if nothing catches it;
+* SIGKILL, or any death of the thread that started the node: Linux sends the node SIGTERM
+  (its parent-death signal, set up by the node on start), on which it stops its workers
+  and exits.
+
+Create the ``NodeProcess`` in the thread that lives as long as the node should (the main
+thread, usually): the parent-death signal follows the thread that started the process.
 """
 
 from __future__ import annotations
@@ -16,20 +31,35 @@ import os
 from pathlib import Path
 import signal
 import subprocess
+import sys
+import threading
 import time
 from typing import Any, NoReturn, TYPE_CHECKING
 
 if TYPE_CHECKING:
     from collections.abc import Mapping, Sequence
 
-__all__ = ['LaunchError', 'NodeProcess', 'STARTUP_TIMEOUT', 'node_command']
+__all__ = ['LaunchError', 'NodeProcess', 'STARTUP_TIMEOUT', 'Terminated', 'node_command']
 
 STARTUP_TIMEOUT = 60.0
 LOG_TAIL_CHARS = 2000
 
 
+# The node reads it (projection_server.lifetime.PARENT_ENV; the client imports nothing of
+# the server): the pid whose death stops the node.
+PARENT_ENV = 'PROJECTION_SERVER_PARENT'
+
+
 class LaunchError(RuntimeError):
     """The node could not be started, or exited or timed out before its service answered."""
+
+
+class Terminated(KeyboardInterrupt):
+    """The script got SIGTERM inside a :class:`NodeProcess` block (handled like Ctrl-C)."""
+
+
+def _terminated(signum: int, frame: object) -> None:
+    raise Terminated(f'signal {signum}')
 
 
 def node_command(node: str, params: Mapping[str, object], *,
@@ -64,21 +94,34 @@ class NodeProcess:
         self.command = list(command)
         self.log_path = log_path
         self.stop_timeout = stop_timeout
+        self._previous_handler: Any = None
+        env = {**os.environ, PARENT_ENV: str(os.getpid())}
         try:
             with open(log_path, 'w') as log:
                 # A new session: a Ctrl-C meant for the caller does not reach the node,
                 # which the caller stops in its own time.
                 self.proc = subprocess.Popen(self.command, stdout=log,
-                                             stderr=subprocess.STDOUT,
+                                             stderr=subprocess.STDOUT, env=env,
                                              start_new_session=True)
         except OSError as exc:
             raise LaunchError(f'cannot start {self.command[0]}: {exc}') from exc
 
     def __enter__(self) -> NodeProcess:
+        # SIGTERM ends the block like Ctrl-C, unless the script handles SIGTERM itself.
+        if threading.current_thread() is threading.main_thread() and signal.getsignal(
+                signal.SIGTERM) in (signal.SIG_DFL, None):
+            self._previous_handler = signal.signal(signal.SIGTERM, _terminated)
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
+    def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
+        try:
+            self.stop()
+        finally:
+            if self._previous_handler is not None:
+                signal.signal(signal.SIGTERM, self._previous_handler)
+                self._previous_handler = None
+        if isinstance(exc, Terminated):
+            sys.exit(128 + signal.SIGTERM)
 
     @property
     def running(self) -> bool:

@@ -20,6 +20,7 @@ import json
 import logging
 import os
 from pathlib import Path
+import signal
 import sys
 import threading
 
@@ -35,6 +36,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from std_srvs.srv import Trigger
 
 from projection_server import projection
+from projection_server.lifetime import die_with_parent, PARENT_ENV
 from projection_server.service import prolog_bridge
 from projection_server.service.project_action import ProjectActionServer
 from projection_server.service.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryEvent,
@@ -325,6 +327,11 @@ def _float(description: str, low: float, high: float) -> ParameterDescriptor:
 
 
 def main(args=None) -> int:
+    parent = os.environ.pop(PARENT_ENV, '')
+    # Started by a script's NodeProcess: stop, as on SIGTERM, when that script ends, even by
+    # SIGKILL (rclpy's signal handler turns SIGTERM into a shutdown like Ctrl-C's).
+    if parent.isdigit() and not die_with_parent(int(parent), signal.SIGTERM):
+        return 1
     rclpy.init(args=args)
     node = None
     try:

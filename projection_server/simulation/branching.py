@@ -20,15 +20,14 @@ process that called :func:`run_tree` stops its whole tree.
 
 from __future__ import annotations
 
-import ctypes
 import math
 import os
-import signal
 import traceback
 from typing import Any, Callable, TYPE_CHECKING
 
 from projection_server.bags import BagWriter, Record, TOPICS, typestore
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.lifetime import die_with_parent
 from projection_server.simulation.runner import Projection, projection_info
 
 if TYPE_CHECKING:
@@ -38,12 +37,11 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.settings import Settings
 
-__all__ = ['Report', 'die_with_parent', 'run_tree', 'start_tree']
+__all__ = ['Report', 'run_tree', 'start_tree']
 
 # report(index, the finished Projection or a ProjectionError, ok): once per leaf, from the
 # leaf's process (which makes the timeline of a finished one, its records in memory).
 Report = Callable[[int, Any, bool], None]
-_PR_SET_PDEATHSIG = 1
 
 
 def run_tree(client: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
@@ -181,13 +179,3 @@ def _fork(work: Callable[[], int], group: bool = False) -> int:
         except ProcessLookupError:   # the child has ended already
             pass
     return pid
-
-
-def die_with_parent(parent: int) -> bool:
-    """Have the calling process killed when its parent (the thread that started it) ends
-    (``PR_SET_PDEATHSIG``); False if the parent, pid ``parent``, has ended already."""
-    try:
-        ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (AttributeError, OSError):   # not Linux: it outlives a killed parent
-        pass
-    return os.getppid() == parent   # else the parent died before prctl

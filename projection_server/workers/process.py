@@ -38,8 +38,12 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
     """Entry point of a worker process: sends :class:`Ready`, then answers commands."""
     import signal
 
-    # Ctrl-C belongs to the parent, which stops its workers itself.
+    from projection_server.lifetime import die_with_parent
+
+    # Ctrl-C belongs to the parent, which stops its workers itself; a parent that is killed
+    # (the node, or the local pool's fork server, which ends with the node) takes them along.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(os.getppid())
     # PyBullet's C code prints banners on stdout (the parent's, e.g. a ROS node's); errors
     # travel back through the pipe and stderr stays open.
     devnull = os.open(os.devnull, os.O_WRONLY)
@@ -162,7 +166,7 @@ def main() -> None:
     import sys
     from multiprocessing.connection import Connection
 
-    from projection_server.simulation.branching import die_with_parent
+    from projection_server.lifetime import die_with_parent
 
     fd, parent = int(sys.argv[1]), int(sys.argv[2])
     if not die_with_parent(parent):
