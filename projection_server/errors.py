@@ -22,6 +22,7 @@ class ErrorKind(StrEnum):
     UNKNOWN_PROGRAM = 'unknown_program'        # no program of that name
     INVALID_SETTINGS = 'invalid_settings'      # physics settings, backend options, code version
     UNREACHABLE = 'unreachable'                # a robot cannot reach a pose it is sent to
+    PLAN_DURATION = 'plan_duration'            # a plan cannot finish in its simulated time
     TIMEOUT = 'timeout'                        # the projection ran over its time limit
     CANCELLED = 'cancelled'                    # the query that wanted it was cancelled
     WORKER_CRASHED = 'worker_crashed'          # the worker process died under it

@@ -119,7 +119,9 @@ on that projection's timeline:
 %          for a malformed plan (plan_template/3)
 %   @error domain_error(plan_value, Values) for a plan whose grounded values
 %          are out of their ranges, resource_error(plan_duration) for one that
-%          may run longer than the interpreter's bound
+%          cannot finish within the interpreter's 120 s of simulated time (its
+%          moves by offsets, turns and waits alone take longer) or that ran past
+%          them (the message names the step)
 %   @error existence_error(entity, Object) for a plan moving to an object
 %          that is not in the scenario
 %   @error projection_error(Kind, Message) when a simulation fails or times out
@@ -468,7 +470,10 @@ projection_error(Class, Value) :-
     ->  atom_string(Message, Message0)
     ;   Message = Class
     ),
-    throw(error(projection_error(Kind, Message), _)).
+    (   Kind == plan_duration   % as check_plan/2 says it before running
+    ->  throw(error(resource_error(plan_duration), context(_, Message)))
+    ;   throw(error(projection_error(Kind, Message), _))
+    ).
 
 %!  translate(+Log, -Timeline) is det.
 %

@@ -91,6 +91,7 @@ def _text(term) -> str:
     ('[move_to(unicorn1, [0, 0, 0.1])]', 'existence_error', 'unicorn1'),
     ('[move_by([0, 0, 0.1], [speed(-1)])]', 'domain_error', 'speed'),
     ('[wait(60), wait(60), wait(60)]', 'resource_error', 'simulated time'),
+    ('[move_by([0, 0, 0.5], [speed(0.004)])]', 'resource_error', 'at least 125 s'),
 ])
 def test_a_bad_plan_is_refused_before_anything_runs(call, plan, kind, words):
     if plan == '[]':
@@ -123,3 +124,37 @@ def test_a_plans_parameters_have_any_name_and_negative_values(call):
         quantity(displacement(egg1), D, TL)''')
     assert r.ok, r.message
     assert sols[0]['Dx'] == -0.05 and sols[0]['D'] < 0.005
+
+
+# The README's plans at the default speed (0.1 m/s): no plan a user writes is refused as long.
+PICK_AND_PLACE = ('make_projection(grasping, plan([move_to(egg1, [-0.09, 0, 0], '
+                  '[orientation(side(0))]), move_to(egg1, [0, 0, 0]), close_gripper(5), '
+                  'move_by([0, 0, 0.1]), move_by([0, -0.3, 0]), move_by([0, 0, -0.05]), '
+                  'open_gripper]), [], TL), quantity(final_pose(egg1), [[X, Y, Z], _], TL)')
+
+
+def test_a_pick_and_place_at_the_default_speeds_is_projected(call):
+    r, sols = ask(call, PICK_AND_PLACE)
+    assert r.ok, r.message
+    # carried 0.3 m to the robot's right and set down on the table
+    assert abs(sols[0]['Y'] + 0.3) < 0.03 and abs(sols[0]['Z'] - 0.742) < 0.01, sols
+
+
+def test_the_section_ii_release_at_the_default_speeds_breaks_the_egg(call):
+    default_speeds = re.sub(r',\s*\[speed\([0-9.]+\)\]\)', ')', DROP)
+    assert 'speed' not in default_speeds.split('open_gripper')[0].split('close_gripper')[1]
+    r, sols = ask(call, default_speeds.format(side=-0.6, down=-0.32))
+    assert r.ok, r.message
+    assert 'broken(egg1)' in [_text(f) for f in sols[0]['Fs']], sols
+
+
+def test_a_plan_that_runs_past_its_simulated_time_stops_naming_the_step(call):
+    # 119 s of waiting cannot be refused before running, but the move after it cannot end
+    # in the second left.
+    r, _ = ask(call, 'make_projection(grasping, plan([wait(119), move_to(egg1, [0, 0, 0.5]),'
+                     ' wait(0.5)]), [], _)')
+    assert not r.ok and r.error_kind == 'resource_error', (r.error_kind, r.message)
+    assert 'ran past 120 s' in r.message and 'step 2 of 3 (move_to egg1' in r.message, \
+        r.message
+    r, sols = ask(call, 'X = 1')   # the node serves on
+    assert r.ok and sols == [{'X': 1}]

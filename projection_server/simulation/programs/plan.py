@@ -34,11 +34,14 @@ when they have stopped. They open to the gripper's full opening. A step's *targe
 object it names, else that of the last step that named one (what the robot is meant to
 touch; the timeline's ``collision`` excludes it).
 
-Bounds, checked before anything runs: at most :data:`MAX_STEPS` steps, and at most
-:data:`MAX_DURATION` seconds of simulated time by a bound that takes every motion as
-:data:`MAX_TRAVEL` metres or its angle at its speed, each gripper step as
-:data:`GRIPPER_TIME` and each wait as its seconds. When its steps are done the plan waits
-until the world has been at rest for :data:`REST_TIME` (at most :data:`SETTLE_AFTER` s), so
+Bounds: at most :data:`MAX_STEPS` steps, and :data:`MAX_DURATION` seconds of simulated time.
+Before anything runs, a plan is refused only if it cannot finish in time: by
+:func:`plan_bound`, the time its steps take at the least (a ``move_by`` its exact length
+at its speed, a ``rotate_by`` its angle, a ``wait`` its seconds; a ``move_to`` and a gripper
+step may take no time, since where the tool starts is not known before the world is
+built). A plan that runs past the limit stops there with a :class:`PlanTooLong` naming the
+step it reached. When its steps are done the plan waits until the world has been at rest
+for :data:`REST_TIME` (at most :data:`SETTLE_AFTER` s), so
 that what it let go of lands. Nothing in the interpreter looks at the outcome.
 """
 
@@ -65,8 +68,7 @@ __all__ = ['ACTIONS', 'PROGRAM', 'PlanTask', 'PlanTooLong', 'check_plan', 'groun
            'plan_bound']
 
 MAX_STEPS = 100
-MAX_DURATION = 120.0       # s of simulated time a plan may take, by plan_bound
-MAX_TRAVEL = 3.0           # m a motion is taken to cover at most, for the bound
+MAX_DURATION = 120.0       # s of simulated time a plan's steps may take
 GRIPPER_TIME = 2.0         # s a gripper step may take at most
 SETTLE_AFTER = 3.0         # s the world may take to come to rest after the last step
 DEFAULT_SPEED = 0.1        # m/s
@@ -81,7 +83,14 @@ REST_TIME = 0.1            # from its first sample); and for how long the world 
 FLIP_MARGIN = 0.1          # rad by which a half-turned grasp must be nearer to be taken
 
 class PlanTooLong(ProjectionError):
-    """A plan whose bound of simulated time is over :data:`MAX_DURATION`."""
+    """A plan that cannot finish, or did not finish, within :data:`MAX_DURATION` s of
+    simulated time."""
+
+    def __init__(self, message: str):
+        super().__init__(ErrorKind.PLAN_DURATION, message)
+
+    def __reduce__(self):
+        return (type(self), (self.message,))
 
 
 # action -> (required arguments, optional arguments)
@@ -119,10 +128,9 @@ def check_plan(plan: Any, params: Mapping[str, float]) -> list[dict[str, Any]]:
         _invalid(f'the plan names parameters that are not given: {", ".join(unknown)}')
     bound = plan_bound(steps)
     if bound > MAX_DURATION:
-        raise PlanTooLong(ErrorKind.INVALID_PARAMETERS,
-                          f'the plan may take up to {bound:.0f} s of simulated time, more '
-                          f'than {MAX_DURATION:.0f} s (motions are bounded as {MAX_TRAVEL} m '
-                          'at their speed)')
+        raise PlanTooLong(f'the plan takes at least {bound:.0f} s of simulated time, more '
+                          f'than {MAX_DURATION:.0f} s: its moves by offsets, turns and waits '
+                          'alone take that long at their speeds')
     return steps
 
 
@@ -164,20 +172,18 @@ _OPERATORS = ('+', '-', '*', '/')
 
 
 def plan_bound(steps: Sequence[Mapping[str, Any]]) -> float:
-    """An upper bound of the simulated seconds a grounded plan takes (see the module doc)."""
+    """The fewest simulated seconds a grounded plan's steps can take (see the module doc)."""
     total = 0.0
     for step in steps:
         action = step['action']
-        turn_speed = step.get('angular_speed', DEFAULT_TURN_SPEED)
-        if action in ('move_to', 'move_by'):
-            total += max(MAX_TRAVEL / step.get('speed', DEFAULT_SPEED), math.pi / turn_speed)
+        if action == 'move_by':
+            total += math.dist(step['offset'], (0.0, 0.0, 0.0)) / step.get('speed',
+                                                                             DEFAULT_SPEED)
         elif action == 'rotate_by':
-            total += abs(step['angle']) / turn_speed
+            total += abs(step['angle']) / step.get('angular_speed', DEFAULT_TURN_SPEED)
         elif action == 'wait':
             total += step['seconds']
-        else:
-            total += GRIPPER_TIME
-    return total + SETTLE_AFTER
+    return total
 
 
 def _references(value: Any) -> set[str]:
@@ -420,7 +426,17 @@ class PlanTask:
                 self._start(self.steps[self.index], t)
             elif self._done_at is None:
                 self._done_at = t
+        if self._done_at is None and t > MAX_DURATION:
+            self._too_long()
         self._move(t)
+
+    def _too_long(self):
+        step = self.steps[self.index]
+        what = step['action'] + (f' {step["object"]}' if step.get('object') else '')
+        raise PlanTooLong(f'the plan ran past {MAX_DURATION:.0f} s of simulated time in step '
+                          f'{self.index + 1} of {len(self.steps)} ({what}, begun at '
+                          f'{self._started:.1f} s): give its motions a higher speed, or '
+                          'project it in parts')
 
     def _move(self, t: float) -> None:
         """Servo the tool to the motion's pose at time ``t`` (in plain floats: it runs at
