@@ -27,7 +27,6 @@ import threading
 from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQuery
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -141,11 +140,10 @@ class ProjectionServerNode(Node):
         self.declare_parameter('ray_address', '', ParameterDescriptor(
             description='Ray cluster for projection_backend ray: auto, ray://host:port or '
                         'host:port (empty: start a local Ray instance)', read_only=True))
-        # String arrays without a default: an empty list would be typed as bytes.
-        self.declare_parameter('kb_files', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+        self._declare_string_array('kb_files', ParameterDescriptor(
             description='Turtle files added to the knowledge base at start (default: none)',
             read_only=True))
-        self.declare_parameter('asset_paths', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+        self._declare_string_array('asset_paths', ParameterDescriptor(
             description='Directories where model files resolve, after the package assets and '
                         'before pybullet_data (default: none)', read_only=True))
         self.add_on_set_parameters_callback(self._check_parameters)
@@ -184,10 +182,7 @@ class ProjectionServerNode(Node):
             f'(max_engines={self.queries.limits.max_engines})')
 
     def _string_array(self, name: str) -> list[str]:
-        try:
-            return list(self.get_parameter(name).value or [])
-        except ParameterUninitializedException:
-            return []
+        return list(self.get_parameter(name).value)
 
     def _limits(self, overrides: dict | None = None) -> ServerLimits:
         value = {p: self.get_parameter(p).value for p in
@@ -198,6 +193,19 @@ class ProjectionServerNode(Node):
                             max_solutions=int(value['max_solutions']),
                             idle_timeout=float(value['idle_timeout']),
                             sandbox=bool(value['sandbox']))
+
+    def _declare_string_array(self, name: str, descriptor: ParameterDescriptor) -> None:
+        """Declare string array ``name`` with the empty list as its default.
+
+        rclpy types an empty list as a byte array, and a parameter file's ``[]`` (what
+        ``ros2 param dump`` writes) as no value; a parameter without a value makes rclpy's
+        get_parameters service answer nothing at all to a request that names it, so ``ros2
+        param dump`` would print no parameter. The empty list is given its type here.
+        """
+        value = self.declare_parameter(name, Parameter.Type.STRING_ARRAY, descriptor)
+        if value.type_ == Parameter.Type.NOT_SET:
+            # Read-only, so set_parameters would refuse it; rclpy has no public way.
+            self._parameters[name] = Parameter(name, Parameter.Type.STRING_ARRAY, [])
 
     def _check_parameters(self, params) -> SetParametersResult:
         changes = {}
