@@ -93,7 +93,7 @@ def test_a_frame_shows_the_arm_in_its_colours_where_its_links_stand(scene):
     assert len(links) >= 8, links
     t = scene.duration / 2
     with Renderer(scene) as renderer:
-        camera = renderer.camera(distance=None, yaw=10.0, pitch=-20.0,
+        camera = renderer.camera(distance=None, yaw=-30.0, pitch=-20.0, lift=-0.1,
                                  width=SIZE[0], height=SIZE[1])
         image = renderer.frame(t, camera)
         without = renderer.frame(t, camera, hide={robot.name})

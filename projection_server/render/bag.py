@@ -48,7 +48,7 @@ def timeline_of_bag(bag: str | os.PathLike[str]) -> dict[str, Any]:
 
 def render_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str] | None = None, *,
                width: int = 640, height: int = 480, target: str | None = None,
-               distance: float | None = None, yaw: float = 10.0, pitch: float = -20.0,
+               distance: float | None = None, yaw: float = -30.0, pitch: float = -20.0,
                max_frames: int = 10, strip: bool = True,
                assets: Iterable[str | os.PathLike[str]] = ()) -> list[Path]:
     """Render the projection logged in ``bag`` into the directory ``out`` (made if missing;
@@ -76,8 +76,9 @@ def render_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str] | None =
     written: list[Path] = []
     images = []
     with Renderer(scene) as renderer:
+        # Without a target the centre of what moves is high up the arm: look lower.
         camera = renderer.camera(target=target, distance=distance, yaw=yaw, pitch=pitch,
-                                 width=width, height=height)
+                                 lift=0.05 if target else -0.1, width=width, height=height)
         for index, (t, label) in enumerate(times):
             image = renderer.frame(t, camera)
             images.append(image)

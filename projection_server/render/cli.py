@@ -35,7 +35,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help='look at this entity (default: the centre of what moves)')
     parser.add_argument('--distance', type=float, default=None, metavar='M',
                         help="the camera's distance (default: all that moves in view)")
-    parser.add_argument('--yaw', type=float, default=10.0, help='camera yaw in degrees')
+    parser.add_argument('--yaw', type=float, default=-30.0, help='camera yaw in degrees')
     parser.add_argument('--pitch', type=float, default=-20.0, help='camera pitch in degrees')
     parser.add_argument('--frames', type=int, default=10, metavar='N',
                         help='at most N key frames (default: 10)')

@@ -114,7 +114,7 @@ class Renderer:
         far enough to see all of those."""
         focus, radius = _focus(self.scene, target)
         if distance is None:
-            distance = max(0.45, 2.4 * radius + 0.25)
+            distance = max(0.45, 2.0 * radius + 0.2)
         focus = focus + np.array([0.0, 0.0, lift])
         view = self._client.computeViewMatrixFromYawPitchRoll(
             cameraTargetPosition=focus.tolist(), distance=distance, yaw=yaw, pitch=pitch,
