@@ -167,3 +167,37 @@ def test_a_mesh_not_found_is_drawn_as_a_box_with_one_warning(caplog):
     assert robot.visuals[2].rgba == (0.0, 0.0, 1.0, 1.0) and robot.visuals[2].xyz[2] == 0.1
     # a bag made on another machine: the Panda's mesh is found in pybullet_data
     assert robot.visuals[3].mesh.endswith('franka_panda/meshes/visual/link1.obj')
+
+
+TWO_ROBOTS = '''<robot name="{name}">
+  <link name="{name}"><visual><geometry><box size="0.2 0.2 0.2"/></geometry>
+    <material name="c"><color rgba="{rgba}"/></material></visual></link>
+  <link name="{name}/top"><visual><geometry><{top}/></geometry>
+    <material name="c"/></visual></link>
+  <joint name="j" type="fixed"><parent link="{name}"/><child link="{name}/top"/></joint>
+</robot>'''
+
+
+def test_every_robot_of_a_scene_is_drawn_in_its_colours_at_its_links_poses():
+    from projection_server.render import BagScene, parse_robot, Renderer
+    from projection_server.render.scene import Track
+
+    def track(parent, xyz):   # two samples: a frame that moves, in the camera's focus
+        return Track(parent, [0.0, 1.0], np.array([xyz, xyz], dtype=float),
+                     np.array([[0, 0, 0, 1.0]] * 2))
+    robots = [parse_robot(TWO_ROBOTS.format(name='red', rgba='1 0 0 1',
+                                            top='sphere radius="0.1"')),
+              parse_robot(TWO_ROBOTS.format(name='blue', rgba='0 0 1 1',
+                                            top='cylinder radius="0.1" length="0.2"'))]
+    tracks = {'red': track('world', (0, -0.4, 0.5)), 'red/top': track('red', (0, 0, 0.3)),
+              'blue': track('world', (0, 0.4, 0.5)), 'blue/top': track('blue', (0, 0, 0.3))}
+    scene = BagScene(tracks, [], [], 1.0, robots)
+    with Renderer(scene) as renderer:
+        camera = renderer.camera(distance=2.5, yaw=90.0, pitch=-10.0, lift=0.0,
+                                 width=SIZE[0], height=SIZE[1])
+        image = renderer.frame(0.5, camera).astype(int)
+    for frame, channel in (('red', 0), ('red/top', 0), ('blue', 2), ('blue/top', 2)):
+        col, row = (int(round(v)) for v in camera.pixel(scene.pose(frame, 0.5)[0]))
+        pixel = image[row, col]
+        assert pixel[channel] > 80 and pixel[channel] > 2 * np.delete(pixel, channel).max(), (
+            frame, pixel)

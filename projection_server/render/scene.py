@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 
     from projection_server.render.robots import RobotModel
 
-__all__ = ['BagScene', 'RenderError', 'Shape', 'WORLD_FRAMES', 'compose']
+__all__ = ['BagScene', 'RenderError', 'Shape', 'Track', 'WORLD_FRAMES', 'compose']
 
 WORLD_FRAMES = frozenset({'world', 'map', ''})
 
@@ -41,7 +41,9 @@ class RenderError(Exception):
 
 
 @dataclass
-class _Track:
+class Track:
+    """A frame's poses in its parent frame over time (seconds)."""
+
     parent: str
     times: list[float]
     xyz: np.ndarray    # (n, 3)
@@ -65,7 +67,7 @@ class Shape:
 class BagScene:
     """The shapes, robots and poses of one projection's bag, at any time (seconds)."""
 
-    tracks: dict[str, _Track]
+    tracks: dict[str, Track]
     marker_updates: list[tuple[float, list[tuple[str, int, int, Shape | None]]]]
     broken: list[tuple[float, frozenset[str]]]
     duration: float
@@ -122,7 +124,7 @@ class BagScene:
         if not updates:
             message = f'bag {bag} has no /projection/markers: nothing to draw'
             raise RenderError(message)
-        tracks = {name: _Track(parent, [s[0] for s in samples],
+        tracks = {name: Track(parent, [s[0] for s in samples],
                                np.array([s[1] for s in samples], dtype=float),
                                np.array([s[2] for s in samples], dtype=float))
                   for name, (parent, samples) in raw_tracks.items()}
