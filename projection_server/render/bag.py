@@ -60,7 +60,8 @@ def render_bag(bag: str | os.PathLike[str], out: str | os.PathLike[str] | None =
     side by side (unless ``strip`` is false); ``timeline.png``, the timeline's chart
     (:func:`~projection_server.render.chart.timeline_chart`). The camera looks at
     ``target`` (an entity's name) or at the centre of what moves, from ``distance`` metres
-    (None: far enough to see all that moves), turned by ``yaw`` and ``pitch`` degrees.
+    (None: 0.45 m from a target, else far enough to see all that moves), turned by ``yaw``
+    and ``pitch`` degrees.
     Robots' meshes are looked for in ``assets`` too.
 
     Raises:

@@ -27,14 +27,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                     'robot drawn with its meshes), a strip of them and a chart of the '
                     'timeline.')
     parser.add_argument('bag', type=Path, help="the projection's bag (a directory)")
-    parser.add_argument('--out', type=Path, default=None,
+    parser.add_argument('--out', type=Path, default=None, metavar='DIR',
                         help='directory for the PNG files (default: ./render/<bag name>)')
     parser.add_argument('--size', type=_size, default=(640, 480), metavar='WxH',
                         help='frame size in pixels (default: 640x480)')
     parser.add_argument('--target', default=None, metavar='ENTITY',
                         help='look at this entity (default: the centre of what moves)')
     parser.add_argument('--distance', type=float, default=None, metavar='M',
-                        help="the camera's distance (default: all that moves in view)")
+                        help="the camera's distance (default: 0.45 m from a target, else "
+                             'all that moves in view)')
     parser.add_argument('--yaw', type=float, default=-30.0, help='camera yaw in degrees')
     parser.add_argument('--pitch', type=float, default=-20.0, help='camera pitch in degrees')
     parser.add_argument('--frames', type=int, default=10, metavar='N',

@@ -111,7 +111,7 @@ class Renderer:
         """A camera that looks at ``target``'s position at the start of the projection
         (raised by ``lift``), so that motion shows against a still background; without a
         target, at the centre of the moving bodies and robot links. ``distance`` None:
-        far enough to see all of those."""
+        far enough to see all of those (0.45 m from a target)."""
         focus, radius = _focus(self.scene, target)
         if distance is None:
             distance = max(0.45, 2.0 * radius + 0.2)
