@@ -42,6 +42,7 @@ setup(
             'projection_server = projection_server.service.node:main',
             'prolog_query = projection_server.client.cli:main',
             'projection_reproduce = projection_server.reproduce.__main__:main',
+            'projection_render = projection_server.render.cli:main',
         ],
     },
 )

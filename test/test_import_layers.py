@@ -20,8 +20,9 @@ SHARED = {'errors', 'canonical', 'settings', 'bags.schema', 'assets', 'geometry'
 # Modules of a stage that are not named as the stage: the projection layer's beliefs (it
 # draws the worlds of uncertain properties before a job is made).
 MEMBERS = {'beliefs': 'projection'}
-# Re-exports at the old paths, kept for one release; tools that drive the whole service.
-OUTSIDE = {'node', 'launcher', 'bindings', 'reproduce'}
+# Re-exports at the old paths, kept for one release; tools that drive the whole service or
+# read its bags (the renderer reads a bag and its timeline, as a worker makes it).
+OUTSIDE = {'node', 'launcher', 'bindings', 'reproduce', 'render'}
 
 
 def _module(path: Path) -> str:
@@ -100,6 +101,13 @@ def test_the_client_imports_nothing_of_the_server():
     wrong = [f'{module} imports {imported} ({other})'
              for module, part, imported, other in _edges()
              if part == 'client' and other not in ('client', '')]
+    assert wrong == []
+
+
+def test_the_renderer_reads_bags_and_drives_no_service():
+    wrong = [f'{module} imports {imported} ({other})'
+             for module, part, imported, other in _edges()
+             if part == 'render' and other in ('service', 'projection', 'client', 'reproduce')]
     assert wrong == []
 
 

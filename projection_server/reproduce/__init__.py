@@ -9,7 +9,7 @@ Modules: :mod:`.paper` (the paper's tables as data), :mod:`.experiments` (the ex
 and running them), :mod:`.run` (a whole reproduction),
 :mod:`.report` (text and Markdown tables, grids), :mod:`.explain` (why ours and
 the paper's cells differ), :mod:`.render` (frames
-from bags).
+from bags: :mod:`projection_server.render`, re-exported).
 """
 
 from __future__ import annotations

@@ -126,7 +126,7 @@ def write_report(results: Sequence[Result], out: str | Path, *, frames: bool = T
 
     ``references`` maps an experiment's key to the same query run at finer physics
     settings: its agreement is shown beside the agreement with the paper."""
-    from projection_server.reproduce import render
+    from projection_server import render
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
