@@ -8,6 +8,7 @@
 :- use_module(timeline).
 :- use_module(projection).
 :- use_module(uncertainty).
+:- use_module(robust).
 :- use_module(search).
 :- autoload(library(error), [must_be/2]).
 :- autoload(library(lists), [member/2]).
@@ -23,6 +24,7 @@ module `user`:
   - projection (projection.pl): make_projection/4,5, simulate/5, translate/2
   - timelines (timeline.pl, temporal.pl): holds/2,3, occurs/2,3, Allen's relations
   - uncertainty (uncertainty.pl): outcome_probability/7
+  - robust (robust.pl): robust_parametrization/7
   - search (search.pl): outcome_boundary/7, best_parametrization/8
 */
 
@@ -61,6 +63,7 @@ api_module(scenario).
 api_module(timeline).
 api_module(projection).
 api_module(uncertainty).
+api_module(robust).
 api_module(search).
 
 % The query language is safe to call from sandboxed queries: it only changes
@@ -90,5 +93,6 @@ sandbox:safe_primitive(timeline:timeline_remove(_)).
 % A probability's condition and the searches' Condition/Constraint are the query's own
 % goals: safe when they are (library(sandbox) checks the meta arguments).
 sandbox:safe_meta_predicate(uncertainty:outcome_probability/7).
+sandbox:safe_meta_predicate(robust:robust_parametrization/7).
 sandbox:safe_meta_predicate(search:outcome_boundary/7).
 sandbox:safe_meta_predicate(search:best_parametrization/8).
