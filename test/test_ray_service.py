@@ -170,6 +170,26 @@ def test_worlds_drawn_from_a_belief_are_the_same_on_both_backends(ray_query, cal
     assert [w[0] for w in made[0]['Worlds']] == [w[0] for w in made[1]['Worlds']]
 
 
+ROBUST = """copy_scenario(grasping, S),
+    scenario_set_property(S, egg1, friction, uniform(0.15, 0.4)),
+    scenario_set_property(S, egg1, breaking_force, normal(10, 1.5)),
+    robust_parametrization(S, grasp_object, [(F, force, [1, 2, 5, 9])],
+                           [seed(6), batch(4), certify(8)], TL,
+                           ( \\+ occurs(break, _, TL), \\+ occurs(slip, _, TL) ), Best)"""
+
+
+def test_a_robust_choice_is_the_same_on_both_backends(ray_query, call):
+    r = ray_query.wait(ray_query(ROBUST, timeout=TABLE_TIMEOUT))
+    assert r.ok, r.message
+    local = call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=ROBUST,
+                                         timeout=TABLE_TIMEOUT), timeout=TABLE_TIMEOUT + 60.0)
+    assert local.ok, local.message
+    strip = ('TL', 'S')
+    made = [{k: v for k, v in s.items() if k not in strip} for s in solutions(r)]
+    assert made == [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    assert made[0]['F'] == 5, made
+
+
 def test_an_actor_killed_mid_query_fails_it_as_worker_crashed_and_the_node_serves_on(
         ray_query):
     text = 'simulate(grasping, grasp_object, [(_, force, [4.2]), (_, position, [0.01])], 60, L)'
