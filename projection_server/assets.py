@@ -2,10 +2,11 @@
 what they hold (for cache keys).
 
 A model file (a URDF, an SDF, an OBJ or an STL mesh) is named by an entity's file-valued
-property (``file`` of a ``rigid_object``; a ``urdf`` robot's may be an SDF). It resolves only inside the *asset directories*: the
-package's own (:data:`PACKAGE_ASSETS`), the directories the node is configured with
-(parameter ``asset_paths``) and ``pybullet_data``'s, in that order, each taken with its
-symbolic links and ``..`` resolved (:func:`configure`, :func:`directories`):
+property (``file`` of a ``rigid_object``; a ``urdf`` robot's may be an SDF). It resolves
+only inside the *asset directories*: the package's own (:data:`PACKAGE_ASSETS`), the
+directories the node is configured with (parameter ``asset_paths``) and ``pybullet_data``'s,
+in that order, each taken with its symbolic links and ``..`` resolved (:func:`configure`,
+:func:`directories`):
 
 * a relative path is looked up in each directory in turn; the first that has it wins;
 * an absolute path must lie inside one of them;
@@ -21,10 +22,11 @@ A file's content is checked once per (path, modification time, size): a URDF mus
 with a ``<robot>`` of at least one ``<link>``, an SDF XML with an ``<sdf>`` holding a
 ``<model>`` of at least one ``<link>`` (a mesh ``<uri>`` is relative to the SDF's directory,
 with or without a leading ``/``, as PyBullet takes it), and every mesh either names must
-resolve inside the asset directories (and be well formed, for OBJ and STL); an OBJ must have vertices and
-faces whose indices exist; an STL must be binary with a length that matches its triangle
-count, or ASCII (``solid`` ... ``facet`` ... ``vertex``). :func:`digest` is the content hash
-of a file and the meshes a URDF or SDF names: it is part of a projection's cache key.
+resolve inside the asset directories (and be well formed, for OBJ and STL); an OBJ must
+have vertices and faces whose indices exist; an STL must be binary with a length that
+matches its triangle count, or ASCII (``solid`` ... ``facet`` ... ``vertex``).
+:func:`digest` is the content hash of a file and the meshes a URDF or SDF names: it is part
+of a projection's cache key.
 
 Pure standard library: Prolog imports it also where no simulator is installed.
 """
