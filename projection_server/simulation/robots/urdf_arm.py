@@ -185,7 +185,8 @@ def _finger_kind(client: Any, robot: str, names: list[str], kinds: list[int]) ->
     named = [kind.get(k, 'fixed or spherical') for k in kinds]
     if 'fixed or spherical' in named or len(set(named)) > 1:
         listed = ', '.join(f'{n} is {k}' for n, k in zip(names, named))
-        raise _fact(robot, 'finger_joints', f'all prismatic or all revolute ({listed})')
+        raise _fact(robot, 'finger_joints', f'they must be all prismatic or all revolute '
+                    f'({listed})')
     return named[0] == 'revolute'
 
 
@@ -202,8 +203,8 @@ def _linkage(physics: Physics, entity: Entity, body_id: int, fingers: list[int],
         bad = [i[1].decode() for i in infos if not 0 < i[9] - i[8] <= 2 * math.pi]
         if bad:
             raise _fact(entity.name, 'finger_open', f'give finger_open and finger_closed: the '
-                        f'limits of {", ".join(bad)} in {Path(p["file"]).name} are no range '
-                        'of a finger')
+                        f'limits of {", ".join(bad)} in {Path(p["file"]).name} are not a '
+                        "finger's range (none, or wider than a turn)")
         open_values, closed_values = [i[9] for i in infos], [i[8] for i in infos]
     pad_names = p.get('pad_links')
     if pad_names is None:
