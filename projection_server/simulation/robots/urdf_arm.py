@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['PROPERTIES', 'URDF_ARM']
+__all__ = ['PROPERTIES', 'URDF_ARM', 'mimic_joints']
 
 PROPERTIES = ('file', 'tool_link', 'tool_offset', 'tool_rpy', 'finger_joints', 'finger_open',
               'finger_closed', 'pad_links', 'max_force', 'home')
@@ -109,7 +109,7 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
                     f'{p["tool_link"]} has no effort limit in {file}: name a tool link before '
                     'it, its offset reaching the pads')
     mimics = {} if sdf else {joints[child]: (joints[parent], multiplier, offset)
-                             for child, (parent, multiplier, offset) in _mimics(path).items()
+                             for child, (parent, multiplier, offset) in mimic_joints(path).items()
                              if child in joints and parent in joints}
     held = {j: _rest(c.getJointInfo(body_id, j)) for j in sorted(kinds)
             if kinds[j] != c.JOINT_FIXED and j not in arm and j not in fingers
@@ -287,7 +287,7 @@ def _couple(client: Any, body_id: int, parent: int, child: int, ratio: float,
 
 
 @functools.cache
-def _mimics(urdf: str) -> dict[str, tuple[str, float, float]]:
+def mimic_joints(urdf: str) -> dict[str, tuple[str, float, float]]:
     """The URDF's mimic joints: child joint name -> (the joint it follows, multiplier,
     offset)."""
     try:
