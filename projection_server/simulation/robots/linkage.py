@@ -19,8 +19,9 @@ its closed value, 1: at its open value; a joint that mimics another follows it):
   :data:`LEVER_STEP`), so each pad pushes with at most ``F``;
 * ``open(o)`` puts the fingers at the ``u`` of opening ``o`` by position control;
   speeds are the pads' [m/s], as for prismatic fingers;
-* the finger links' weight is carried by the drive, as a real gripper's non-backdrivable
-  drive carries it (an upward force on each at its centre of mass, every step): hanging
+* while closing and holding, the finger links' weight is carried by the drive, as a real
+  gripper's non-backdrivable drive carries it (an upward force on each at its centre of
+  mass, every physics step; open, position control holds the fingers): hanging
   fingers would otherwise swing in on what they hold like pendulums (the KUKA SDF's
   fingers weigh 0.6 kg each, which at its pads is about 0.7 N more than asked for).
 """
@@ -71,6 +72,7 @@ class LinkageGripper(Gripper):
         self._slopes = np.maximum(np.abs(slopes), 1e-9)
         self._mean_slope = (self._openings[-1] - self._openings[0]) / (self._u[-1] - self._u[0])
         self._torques = list(max_joint_torques)
+        self._scale = [(float(c), 1.0 / float(k)) for c, k in zip(self._closed, self._span)]
         self._set_at: float | None = None   # u at which the closing torques were set
         self._speed = 0.0
         self._carried = list(carried)
@@ -79,8 +81,9 @@ class LinkageGripper(Gripper):
     # --- the table ------------------------------------------------------------------------
     def position(self) -> float:
         """The fingers' common position ``u`` (their mean)."""
-        values = [s[0] for s in self._client.getJointStates(self.body_id, self._fingers)]
-        return float(np.mean((np.asarray(values) - self._closed) / self._span))
+        # plain floats: it runs every physics step while the gripper closes or holds
+        states = self._client.getJointStates(self.body_id, self._fingers)
+        return sum((s[0] - c) * k for s, (c, k) in zip(states, self._scale)) / len(states)
 
     def levers(self, u: float) -> np.ndarray:
         """Each finger joint's lever at ``u`` [m/rad]: its pad's speed per joint speed."""
@@ -109,8 +112,11 @@ class LinkageGripper(Gripper):
         self._set_at = u
 
     def after_step(self) -> None:
-        """After a physics step, for the next: the finger links' weight carried; a
-        closing motor's torque limit follows the lever."""
+        """After a physics step, for the next, while the fingers close or hold (open, they
+        are held by position control): the finger links' weight carried; the closing
+        motors' torque limits follow the lever."""
+        if self.command != 'close':
+            return
         c = self._client
         if self._carried:
             if self._weights is None:
@@ -118,11 +124,10 @@ class LinkageGripper(Gripper):
                 g = [params[f'gravityAcceleration{a}'] for a in 'XYZ']
                 self._weights = [tuple(-c.getDynamicsInfo(self.body_id, link)[0] * v
                                        for v in g) for link in self._carried]
-            states = c.getLinkStates(self.body_id, self._carried)
+            body, push, world = self.body_id, c.applyExternalForce, c.WORLD_FRAME
+            states = c.getLinkStates(body, self._carried)
             for link, state, lift in zip(self._carried, states, self._weights):
-                c.applyExternalForce(self.body_id, link, lift, state[0], c.WORLD_FRAME)
-        if self.command != 'close':
-            return
+                push(body, link, lift, state[0], world)
         u = self.position()
         if abs(u - self._set_at) >= LEVER_STEP:
             self._set_closing(u)
