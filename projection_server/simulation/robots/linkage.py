@@ -154,9 +154,10 @@ class LinkageGripper(Gripper):
 
 
 def gap(client: Any, body: int, values: dict[int, float], pads: Sequence[int]) -> float:
-    """The smallest distance between the collision shapes of the links ``pads`` of the
-    kinematic copy ``body`` with its joints at ``values`` [m] (negative: they overlap;
-    nan: they are more than 1 m apart or have no shapes)."""
+    """The smallest distance between the collision shapes of the links ``pads`` of
+    ``body`` (a robot before its world runs, or a kinematic copy) with its joints reset to
+    ``values`` [m] (negative: they overlap; nan: they are more than 1 m apart or have no
+    shapes)."""
     for joint, value in values.items():
         client.resetJointState(body, joint, value)
     distances = [p[8] for i, a in enumerate(pads) for b in pads[i + 1:]
@@ -172,8 +173,9 @@ def finger_values(fingers: Sequence[int], open_values: Sequence[float],
     values = dict(held)
     for joint, o, c in zip(fingers, open_values, closed_values):
         values[joint] = c + u * (o - c)
-    for joint, (parent, multiplier, offset) in mimics.items():
-        values[joint] = values.get(parent, 0.0) * multiplier + offset
+    for _ in range(2):   # a joint may mimic one that mimics
+        for joint, (parent, multiplier, offset) in mimics.items():
+            values[joint] = values.get(parent, 0.0) * multiplier + offset
     return values
 
 

@@ -171,6 +171,10 @@ def check(name: str, properties: dict[str, Any]) -> None:
         if len(properties[key]) != len(properties['finger_joints']):
             raise _fact(name, key, f'{len(properties[key])} values for '
                         f'{len(properties["finger_joints"])} finger joints')
+    if given and any(o == c for o, c in zip(properties['finger_open'],
+                                            properties['finger_closed'])):
+        raise _fact(name, 'finger_open', 'a finger joint open where it is closed does not '
+                    'move: finger_open and finger_closed differ for each')
 
 
 def _fact(robot: str, key: str, message: str) -> ProjectionError:
