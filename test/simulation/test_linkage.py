@@ -1,6 +1,7 @@
 """Revolute fingers push with the force a plan asks for: the xArm6's linkage and the KUKA's
 WSG50 squeeze the egg on the table with close_gripper(F), each pad's contact force about F;
-the opening the gripper reports is the gap between its pads."""
+the opening the gripper reports is the gap between its pads; a grasp run twice is the
+same."""
 
 from __future__ import annotations
 
@@ -69,3 +70,8 @@ def test_each_pad_pushes_with_about_the_force_asked_for(robot, pads, make_scenar
     assert all(2.6 <= f <= 3.3 for f in forces.values()), forces
     assert measured == pytest.approx(3.0, rel=0.01)
     assert opening == pytest.approx(0.044, abs=0.004)   # the egg's diameter
+
+
+def test_a_linkage_grasp_is_the_same_run_twice(make_scenario, tmp_path):
+    first = squeeze(make_scenario(), 'xarm', 5.0, tmp_path / 'a')
+    assert squeeze(make_scenario(), 'xarm', 5.0, tmp_path / 'b') == first
