@@ -1,7 +1,7 @@
 """``robot``: built by the robot model its ``model`` names
 (:mod:`projection_server.simulation.robots`): ``pr2`` with its ``gripper`` entity, if the
 scenario has one (a part of the robot in the knowledge base); ``urdf`` from the facts of a
-URDF arm (:mod:`projection_server.simulation.robots.urdf_arm`)."""
+URDF or SDF arm and its gripper (:mod:`projection_server.simulation.robots.urdf_arm`)."""
 
 from __future__ import annotations
 
