@@ -1,11 +1,12 @@
 """Model files of scenario entities: where they resolve, whether they are well formed, and
 what they hold (for cache keys).
 
-A model file (a URDF, an OBJ or an STL mesh) is named by an entity's file-valued property
-(``file`` of a ``rigid_object``). It resolves only inside the *asset directories*: the
-package's own (:data:`PACKAGE_ASSETS`), the directories the node is configured with
-(parameter ``asset_paths``) and ``pybullet_data``'s, in that order, each taken with its
-symbolic links and ``..`` resolved (:func:`configure`, :func:`directories`):
+A model file (a URDF, an SDF, an OBJ or an STL mesh) is named by an entity's file-valued
+property (``file`` of a ``rigid_object``; a ``urdf`` robot's may be an SDF). It resolves
+only inside the *asset directories*: the package's own (:data:`PACKAGE_ASSETS`), the
+directories the node is configured with (parameter ``asset_paths``) and ``pybullet_data``'s,
+in that order, each taken with its symbolic links and ``..`` resolved (:func:`configure`,
+:func:`directories`):
 
 * a relative path is looked up in each directory in turn; the first that has it wins;
 * an absolute path must lie inside one of them;
@@ -18,11 +19,14 @@ holds the absolute path; a job checks its files again (:func:`checked`), since j
 come from any client.
 
 A file's content is checked once per (path, modification time, size): a URDF must be XML
-with a ``<robot>`` of at least one ``<link>``, and every mesh it names must resolve inside
-the asset directories (and be well formed, for OBJ and STL); an OBJ must have vertices and
-faces whose indices exist; an STL must be binary with a length that matches its triangle
-count, or ASCII (``solid`` ... ``facet`` ... ``vertex``). :func:`digest` is the content hash
-of a file and the meshes a URDF names: it is part of a projection's cache key.
+with a ``<robot>`` of at least one ``<link>``, an SDF XML with an ``<sdf>`` holding a
+``<model>`` of at least one ``<link>`` (a mesh ``<uri>`` is relative to the SDF's directory,
+with or without a leading ``/``, as PyBullet takes it), and every mesh either names must
+resolve inside the asset directories (and be well formed, for OBJ and STL); an OBJ must
+have vertices and faces whose indices exist; an STL must be binary with a length that
+matches its triangle count, or ASCII (``solid`` ... ``facet`` ... ``vertex``).
+:func:`digest` is the content hash of a file and the meshes a URDF or SDF names: it is part
+of a projection's cache key.
 
 Pure standard library: Prolog imports it also where no simulator is installed.
 """
@@ -55,8 +59,9 @@ __all__ = [
 ]
 
 PACKAGE_ASSETS = Path(__file__).resolve().parent / 'simulation' / 'objects' / 'assets'
-FORMATS = {'.urdf': 'urdf', '.obj': 'obj', '.stl': 'stl'}
+FORMATS = {'.urdf': 'urdf', '.sdf': 'sdf', '.obj': 'obj', '.stl': 'stl'}
 
+_FORMATS_MESSAGE = 'a model file is a .urdf, .sdf, .obj or .stl file'
 _lock = threading.Lock()
 _configured: tuple[str, ...] | None = None
 
@@ -126,7 +131,7 @@ def resolve(path: str, dirs: Iterable[str] | None = None) -> list[str]:
     * ``['ok', absolute path, '']``;
     * ``['outside', path, message]``: it resolves outside every directory;
     * ``['missing', path, message]``: no directory has it;
-    * ``['format', path, message]``: not a ``.urdf``, ``.obj`` or ``.stl`` file;
+    * ``['format', path, message]``: not a ``.urdf``, ``.sdf``, ``.obj`` or ``.stl`` file;
     * ``['malformed', format, message]``: its content is not a well formed model.
     """
     dirs = tuple(dirs) if dirs is not None else tuple(directories())
@@ -138,7 +143,7 @@ def resolve(path: str, dirs: Iterable[str] | None = None) -> list[str]:
         return ['missing', path, f'no such file in the asset directories ({listed})']
     fmt = FORMATS.get(os.path.splitext(found)[1].lower())
     if fmt is None:
-        return ['format', path, 'a model file is a .urdf, .obj or .stl file']
+        return ['format', path, _FORMATS_MESSAGE]
     message = problem(found, dirs)
     if message is not None:
         return ['malformed', fmt, message]
@@ -189,12 +194,12 @@ def problem(path: str, dirs: Iterable[str] | None = None) -> str | None:
     name = os.path.basename(path)
     try:
         fmt = FORMATS.get(os.path.splitext(path)[1].lower())
-        if fmt == 'urdf':
-            _urdf_meshes(path, dirs)
+        if fmt in ('urdf', 'sdf'):
+            _model_meshes(path, dirs)
         elif fmt in ('obj', 'stl'):
             _mesh_problem(path, dirs)
         else:
-            raise _Malformed('a model file is a .urdf, .obj or .stl file')
+            raise _Malformed(_FORMATS_MESSAGE)
     except _Malformed as exc:
         return f'{name}: {exc}'
     except OSError as exc:
@@ -318,21 +323,27 @@ def _triangles(vertices: list[tuple[float, float, float]]) -> Mesh:
     return Mesh(vertices, [(i, i + 1, i + 2) for i in range(0, len(vertices), 3)])
 
 
-def _urdf_meshes(path: str, dirs: tuple[str, ...]) -> list[str]:
-    """The resolved mesh files the URDF at ``path`` names (checking them)."""
+def _model_meshes(path: str, dirs: tuple[str, ...]) -> list[str]:
+    """The resolved mesh files the URDF or SDF at ``path`` names (checking them)."""
     try:
         root = ElementTree.parse(path).getroot()
     except ElementTree.ParseError as exc:
         raise _Malformed(f'not well formed XML ({exc})') from None
-    if root.tag != 'robot':
-        raise _Malformed(f'the root element is <{root.tag}>, not <robot>')
-    if root.find('link') is None:
+    sdf = os.path.splitext(path)[1].lower() == '.sdf'
+    if root.tag != ('sdf' if sdf else 'robot'):
+        raise _Malformed(f'the root element is <{root.tag}>, not <{"sdf" if sdf else "robot"}>')
+    if sdf and not any(model.find('link') is not None for model in root.iter('model')):
+        raise _Malformed('the <sdf> has no <model> with a <link>')
+    if not sdf and root.find('link') is None:
         raise _Malformed('the <robot> has no <link>')
     meshes = []
     for mesh in root.iter('mesh'):
-        name = mesh.get('filename')
+        uri = mesh.find('uri')
+        name = (uri.text or '').strip() if sdf and uri is not None else mesh.get('filename')
         if not name:
-            raise _Malformed('a <mesh> without a filename')
+            raise _Malformed(f'a <mesh> without {"a <uri>" if sdf else "a filename"}')
+        if sdf:   # PyBullet joins it to the SDF's directory, a leading / or not
+            name = name.removeprefix('model://').lstrip('/')
         real = _urdf_mesh(path, name, dirs)
         if real is None:
             raise _Malformed(f'its mesh {name!r} is outside the asset directories')
@@ -373,11 +384,11 @@ def digest(path: str, dirs: Iterable[str] | None = None) -> str:
     read once per (path, modification time, size)."""
     stat = os.stat(path)
     own = _file_digest(path, stat.st_mtime_ns, stat.st_size)
-    if FORMATS.get(os.path.splitext(path)[1].lower()) != 'urdf':
+    if FORMATS.get(os.path.splitext(path)[1].lower()) not in ('urdf', 'sdf'):
         return own
     dirs = tuple(dirs) if dirs is not None else tuple(directories())
     try:
-        meshes = _urdf_meshes(path, dirs)
+        meshes = _model_meshes(path, dirs)
     except _Malformed as exc:
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'model file {path}: {exc}') from None

@@ -10,7 +10,8 @@
 /** <module> Model files: the meshes and URDFs a scenario's entities are made of
 
 A file-valued property of an entity (the `file` of a `rigid_object`, see
-kb/kitchen.ttl) names a model file: a URDF, an OBJ or an STL mesh.  Model
+kb/kitchen.ttl; a `urdf` robot's, which may be an SDF) names a model file:
+a URDF, an SDF, an OBJ or an STL mesh.  Model
 files resolve only inside the *asset directories*: the package's own, the
 directories the node is started with (parameter `asset_paths`) and
 `pybullet_data`'s, in that order, each with its symbolic links and `..`
@@ -24,7 +25,7 @@ runs:
   - a path that leads outside them (by `..`, a symbolic link or an absolute
     path elsewhere) is a `permission_error(access, model_file, Path)`;
   - a file that is in none of them is an `existence_error(model_file, Path)`;
-  - a file that is not a well formed URDF, OBJ or STL is a
+  - a file that is not a well formed URDF, SDF, OBJ or STL is a
     `domain_error(model_file(Format), Path)` whose message says what is
     wrong (a file of another type: `domain_error(model_file, Path)`).
 
@@ -91,8 +92,8 @@ model_directories(Dirs) :-
 %          outside the asset directories.
 %   @error existence_error(model_file, Path0) if no asset directory has it.
 %   @error domain_error(model_file(Format), Path0) if its content is not a
-%          well formed `urdf`, `obj` or `stl` file (a URDF's meshes
-%          included); domain_error(model_file, Path0) for another type.
+%          well formed `urdf`, `sdf`, `obj` or `stl` file (a URDF's or
+%          SDF's meshes included); domain_error(model_file, Path0) for another type.
 
 model_file(Path0, Path) :-
     must_be(text, Path0),

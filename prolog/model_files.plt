@@ -24,6 +24,8 @@ make_assets :-
     file_in(Dir, 'escape.urdf', Escape),
     link_with_mesh("../secret.obj", Leak),
     write_file(Escape, Leak),
+    file_in(Dir, 'thing.sdf', Sdf),
+    write_file(Sdf, "<sdf version=\"1.6\"><model name=\"x\"/></sdf>"),
     file_in(Dir, 'notes.txt', Notes),
     write_file(Notes, "hello\n"),
     file_in(Dir, 'link.obj', Link),
@@ -97,6 +99,8 @@ test(malformed_urdf, error(domain_error(model_file(urdf), "nolink.urdf"))) :-
     model_file("nolink.urdf", _).
 test(urdf_naming_a_mesh_outside, error(domain_error(model_file(urdf), "escape.urdf"))) :-
     model_file("escape.urdf", _).
+test(malformed_sdf, error(domain_error(model_file(sdf), "thing.sdf"))) :-
+    model_file("thing.sdf", _).
 test(other_file_type, error(domain_error(model_file, "notes.txt"))) :-
     model_file("notes.txt", _).
 test(not_text, error(type_error(text, 42))) :-

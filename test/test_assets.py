@@ -133,6 +133,36 @@ def test_stl_binary_and_ascii(tree):
     assert status('short.stl', tree) == 'malformed'
 
 
+SDF_PART = ('<sdf version="1.6"><model name="x"><link name="a"><collision name="c"><geometry>'
+            '<mesh><uri>{}</uri></mesh></geometry></collision></link></model></sdf>')
+
+
+@pytest.mark.parametrize('uri', ['sub/part.obj', '/sub/part.obj', 'model://sub/part.obj'])
+def test_an_sdfs_mesh_resolves_beside_it_with_or_without_a_leading_slash(tree, uri):
+    (tree / 'arm.sdf').write_text(SDF_PART.format(uri))
+    assert assets.resolve('arm.sdf', [str(tree)]) == ['ok', str(tree / 'arm.sdf'), '']
+    before = assets.digest(str(tree / 'arm.sdf'), [str(tree)])
+    (tree / 'sub' / 'part.obj').write_text(TETRAHEDRON + 'v 2 2 2\n')
+    assert assets.digest(str(tree / 'arm.sdf'), [str(tree)]) != before
+
+
+@pytest.mark.parametrize('text, what', [
+    ('<robot name="x"><link name="a"/></robot>', 'not <sdf>'),
+    ('<sdf version="1.6"><model name="x"/></sdf>', 'no <model> with a <link>'),
+    (SDF_PART.format('../secret.obj'), 'outside the asset directories'),
+    (SDF_PART.format('none.stl'), 'does not exist'),
+])
+def test_a_malformed_sdf_says_what_is_wrong(tree, text, what):
+    (tree / 'bad.sdf').write_text(text)
+    result = assets.resolve('bad.sdf', [str(tree)])
+    assert result[:2] == ['malformed', 'sdf'] and what in result[2], result
+
+
+def test_the_kuka_with_its_gripper_in_pybullet_data_is_a_well_formed_sdf():
+    dirs = assets.default_directories()
+    assert assets.resolve('kuka_iiwa/kuka_with_gripper2.sdf', dirs)[0] == 'ok'
+
+
 def test_the_package_assets_and_pybullet_data_are_asset_directories():
     import pybullet_data
 

@@ -1,7 +1,7 @@
 """``robot``: built by the robot model its ``model`` names
 (:mod:`projection_server.simulation.robots`): ``pr2`` with its ``gripper`` entity, if the
 scenario has one (a part of the robot in the knowledge base); ``urdf`` from the facts of a
-URDF arm (:mod:`projection_server.simulation.robots.urdf_arm`)."""
+URDF or SDF arm and its gripper (:mod:`projection_server.simulation.robots.urdf_arm`)."""
 
 from __future__ import annotations
 
@@ -43,11 +43,19 @@ ROBOT = register(ObjectClass(
     name='robot',
     properties=(Property('model', 'pr2', NAME, '', 'the robot model that builds it'),
                 Property('gripper', None, NAME, '', 'pr2: its gripper entity or asset'),
-                Property('file', None, FILE, '', 'urdf: the URDF'),
+                Property('file', None, FILE, '', 'urdf: the URDF or SDF (one model)'),
                 Property('tool_link', None, NAME, '', 'urdf: the link of the tool point'),
                 Property('tool_offset', None, VECTOR, 'm',
                          "urdf: the tool point in the tool link's frame"),
+                Property('tool_rpy', None, VECTOR, 'rad',
+                         "urdf: the tool frame turned from the tool link's"),
                 Property('finger_joints', None, NAMES, '', 'urdf: the fingers\' joints'),
+                Property('finger_open', None, NUMBERS, 'rad',
+                         'urdf: revolute finger joints\' values when open'),
+                Property('finger_closed', None, NUMBERS, 'rad',
+                         'urdf: revolute finger joints\' values when closed'),
+                Property('pad_links', None, NAMES, '',
+                         'urdf: the links that touch what the gripper holds'),
                 Property('max_force', None, POSITIVE, 'N', 'urdf: the grip force limit'),
                 Property('home', None, NUMBERS, 'rad or m', "urdf: the arm joints' start")),
     fixed={'shape': 'none'},

@@ -2,7 +2,9 @@
 
 * :mod:`.gantry`: ``pr2``, the PR2's gripper on a gantry (the paper's experiments), or on
   six joints for plans;
-* :mod:`.urdf_arm`: ``urdf``, any URDF arm with a gripper, given by a few facts.
+* :mod:`.urdf_arm`: ``urdf``, any URDF (or one-model SDF) arm with a gripper, given by a
+  few facts; fingers on prismatic joints, or on revolute ones and linkages
+  (:mod:`.linkage`).
 
 What a plan drives is a :class:`~.manipulator.Manipulator` (:mod:`.manipulator`, with the
 tool frame's conventions; :mod:`.kinematics` solves arms).

@@ -12,7 +12,8 @@ approximated.
 
 The solver has a kinematic copy of the robot in a PyBullet client of its own (no world, no
 dynamics), so solving never touches the simulated world. Copies are kept per process and
-URDF.
+model file. :func:`load_robot` loads a robot's URDF or SDF (one model) with its base link's
+frame at a pose, in the world and in the copy alike.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ['ANGLE_TOLERANCE', 'Kinematics', 'POSITION_TOLERANCE', 'rotation_vector']
+__all__ = ['ANGLE_TOLERANCE', 'Kinematics', 'POSITION_TOLERANCE', 'load_robot',
+           'rotation_vector']
 
 POSITION_TOLERANCE = 1e-4   # m
 ANGLE_TOLERANCE = 1e-3      # rad
@@ -51,20 +53,56 @@ def rotation_vector(q_from: Sequence[float], q_to: Sequence[float]) -> np.ndarra
     return np.array([x, y, z]) * (angle / s)
 
 
+def load_robot(client: Any, path: str, position: Sequence[float],
+               orientation: Sequence[float], scale: float = 1.0, flags: int = 0) -> int:
+    """Load the robot of the URDF or SDF ``path`` with its base fixed and its base link's
+    frame at the pose; its body id (-1 if PyBullet cannot load it).
+
+    An SDF is loaded whole (PyBullet places it at the pose its file gives), so it must hold
+    one model, then moved: Bullet's base pose is the base link's centre of mass, so the
+    pose given is composed with the base's inertial frame. A base with a mass is fixed to
+    the world by a constraint (PyBullet fixes a massless base itself).
+
+    Raises:
+        ValueError: an SDF of more than one model (its message says how many).
+    """
+    if not str(path).lower().endswith('.sdf'):
+        return client.loadURDF(path, position, orientation, useFixedBase=True,
+                               globalScaling=scale, flags=flags)
+    try:
+        bodies = client.loadSDF(path, globalScaling=scale)
+    except Exception:   # pybullet.error: the file cannot be loaded
+        return -1
+    if len(bodies) != 1:
+        for body in bodies:
+            client.removeBody(body)
+        raise ValueError(f'it holds {len(bodies)} models, a robot is one')
+    body = bodies[0]
+    inertial = client.getDynamicsInfo(body, -1)
+    base = client.multiplyTransforms(position, orientation, inertial[3], inertial[4])
+    client.resetBasePositionAndOrientation(body, *base)
+    if inertial[0] > 0:
+        client.createConstraint(body, -1, -1, -1, client.JOINT_FIXED, (0, 0, 0),
+                                (0, 0, 0), base[0], (0, 0, 0, 1), base[1])
+    return body
+
+
 class Kinematics:
-    """The kinematic copy of one robot: its URDF at its base pose, a tool point on a link.
+    """The kinematic copy of one robot: its URDF or SDF at its base pose, a tool frame on
+    a link (``tool_offset`` and ``tool_orientation`` in the link's frame).
 
     ``joints`` are the joint indices the solver moves (the arm); the others stay at their
     values in :meth:`solve`'s ``seed``.
     """
 
     def __init__(self, urdf: str, base: tuple[Any, Any], tool_link: int,
-                 tool_offset: Sequence[float], joints: Sequence[int], scale: float = 1.0):
+                 tool_offset: Sequence[float], joints: Sequence[int], scale: float = 1.0,
+                 tool_orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0)):
         self.client = _client()
-        self.body = self.client.loadURDF(urdf, base[0], base[1], useFixedBase=True,
-                                         globalScaling=scale)
+        self.body = load_robot(self.client, urdf, base[0], base[1], scale)
         self.tool_link = tool_link
         self.tool_offset = tuple(float(v) for v in tool_offset)
+        self.tool_orientation = tuple(float(v) for v in tool_orientation)
         self.joints = list(joints)
         c, body = self.client, self.body
         self.movable = [j for j in range(c.getNumJoints(body))
@@ -87,7 +125,7 @@ class Kinematics:
             c.resetJointState(body, j, v)
         state = c.getLinkState(body, self.tool_link, computeForwardKinematics=True)
         position, orientation = c.multiplyTransforms(state[4], state[5], self.tool_offset,
-                                                     (0.0, 0.0, 0.0, 1.0))
+                                                     self.tool_orientation)
         return np.asarray(position), np.asarray(orientation)
 
     def solve(self, position: Sequence[float], orientation: Sequence[float],

@@ -135,13 +135,15 @@ class FloatingTool(Manipulator):
 
 
 class Arm(Manipulator):
-    """A URDF arm ``body_id``, loaded at ``base``, with its tool point ``tool_offset`` from
-    link ``tool_link``; ``joints`` are the arm's joints (the fingers are the gripper's)."""
+    """A URDF (or SDF) arm ``body_id``, loaded at ``base``, with its tool point
+    ``tool_offset`` from link ``tool_link`` and the tool frame turned by
+    ``tool_orientation`` from the link's; ``joints`` are the arm's joints (the fingers are
+    the gripper's)."""
 
     def __init__(self, client: Any, name: str, body_id: int, urdf: str, scale: float,
                  base: tuple[Sequence[float], Sequence[float]], joints: Sequence[int],
                  tool_link: int, tool_offset: Sequence[float], gripper: Gripper,
-                 gain: float):
+                 gain: float, tool_orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0)):
         self.name = name
         self.body_id = body_id
         self.gripper = gripper
@@ -149,7 +151,8 @@ class Arm(Manipulator):
         # ``base`` is the pose the URDF was loaded at (its base link's frame; Bullet's own
         # base pose is the base link's centre of mass).
         self.kinematics = _kinematics(urdf, (tuple(base[0]), tuple(base[1])), tool_link,
-                                      tuple(tool_offset), tuple(joints), scale)
+                                      tuple(tool_offset), tuple(joints), scale,
+                                      tuple(tool_orientation))
         self._joints = self.kinematics.movable
         self._arm = list(joints)
         self._forces = [client.getJointInfo(body_id, j)[10] for j in self._arm]
@@ -208,6 +211,6 @@ class Arm(Manipulator):
 @functools.lru_cache(maxsize=8)
 def _kinematics(urdf: str, base: tuple[Any, Any], tool_link: int,
                 tool_offset: tuple[float, ...], joints: tuple[int, ...],
-                scale: float) -> Kinematics:
+                scale: float, tool_orientation: tuple[float, ...]) -> Kinematics:
     """A kinematic copy per robot and base pose, kept for the process's next projections."""
-    return Kinematics(urdf, base, tool_link, tool_offset, joints, scale)
+    return Kinematics(urdf, base, tool_link, tool_offset, joints, scale, tool_orientation)

@@ -1,37 +1,51 @@
-"""``urdf``: any robot arm given as a URDF plus the facts a plan needs of it.
+"""``urdf``: any robot arm given as a URDF (or an SDF) plus the facts a plan needs of it.
 
 The robot entity's properties:
 
-* ``file``: the URDF (resolved in the asset directories), loaded with its base fixed at the
-  entity's pose (the base frame of the URDF);
+* ``file``: the URDF, or an SDF of one model (resolved in the asset directories), loaded
+  with its base fixed at the entity's pose (the frame of its base link); an SDF robot's
+  description is not logged (``/robot_description`` is a URDF), its links are on ``/tf``;
 * ``tool_link`` and ``tool_offset``: the link that carries the tool point and the point's
   offset in that link's frame, midway between the finger pads; the tool frame is the link's
-  frame (its z axis should be the direction the fingers point, y the one they close along:
-  :mod:`.manipulator`'s conventions);
-* ``finger_joints``: the prismatic joints of the fingers, each of whose value is its pad's
-  distance from the tool point (0: closed). Fingers coupled in the URDF (a ``mimic``
-  joint) are coupled in the simulation too (a gear constraint), so the gripper is one
-  drive that centres what it grasps;
-* ``max_force``: the grip force limit [N] (each finger pushes with at most the commanded
+  frame turned by ``tool_rpy`` (roll, pitch, yaw; default none): its z axis the direction
+  the fingers point, y the one they close along (:mod:`.manipulator`'s conventions);
+* ``finger_joints``: the joints that drive the fingers, all prismatic or all revolute.
+  Prismatic: each value is its pad's distance from the tool point (0: closed; open: the
+  upper limit). Revolute (:mod:`.linkage`): ``finger_open`` and ``finger_closed``, their
+  values open and closed (default: their limits, the one at which the pads are further
+  apart being open; limits that are no finger's range, wider than a turn, must be given);
+* ``pad_links``: the links that touch what the gripper holds (default: the finger joints'
+  child links, for revolute fingers the links at the ends of what they move); a revolute
+  gripper's opening is the distance between their collision shapes;
+* ``max_force``: the grip force limit [N] (each pad pushes with at most the commanded
   force, and at most this);
 * ``home``: the arm joints' values at the start (default: the middle of each joint's
   range).
 
-The links' friction coefficient is :data:`FRICTION` (rubber pads), as the PR2 gripper's.
+Joints coupled in the URDF (``mimic``) are coupled in the simulation too, by gear
+constraints (``child = multiplier * parent + offset``), so one drive moves a linkage and
+centres what it grasps. The arm is the non-fixed joints from the base to the tool link,
+moved by position control with their effort limits (one without is an error: name a tool
+link before it); the plan's tool poses are solved by :mod:`.kinematics`. Any other joint
+(a passive finger tip, a wrist flange) is held where it is, at 0 or its nearer limit.
 
-Every other non-fixed joint is an arm joint, moved by position control with the URDF's
-effort limit; the plan's tool poses are solved by :mod:`.kinematics`.
+The links' friction coefficient is :data:`FRICTION` (rubber pads), as the PR2 gripper's.
+A fact that does not fit the model file is an ``invalid_scenario`` error that names it.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from pathlib import Path
 from typing import Any, TYPE_CHECKING
 import xml.etree.ElementTree as ET
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.physics import Body, Gripper
+from projection_server.simulation.robots.kinematics import load_robot
+from projection_server.simulation.robots.linkage import (cached_opening_table, finger_values,
+                                                         gap, LinkageGripper)
 from projection_server.simulation.robots.manipulator import Arm
 from projection_server.simulation.robots.registry import register, RobotModel
 
@@ -39,13 +53,16 @@ if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['PROPERTIES', 'URDF_ARM']
+__all__ = ['PROPERTIES', 'URDF_ARM', 'mimic_joints']
 
-PROPERTIES = ('file', 'tool_link', 'tool_offset', 'finger_joints', 'max_force', 'home')
+PROPERTIES = ('file', 'tool_link', 'tool_offset', 'tool_rpy', 'finger_joints', 'finger_open',
+              'finger_closed', 'pad_links', 'max_force', 'home')
 REQUIRED = ('file', 'tool_link', 'tool_offset', 'finger_joints', 'max_force')
 TRACKING_RATE = 24.0   # 1/s, as the gantry's (robots.gantry)
-COUPLING_FORCE = 100.0   # N of the gear that couples mimic fingers
+COUPLING_FORCE = 100.0   # N (N m) of the gear that couples mimic joints
+HOLD_FORCE = 100.0       # N (N m) that holds a gripper joint that is neither finger nor mimic
 FRICTION = 1.0           # of every link: the fingers' pads are rubber
+MIN_STROKE = 0.005       # m the pads must move apart from closed to open
 
 
 def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> None:
@@ -54,55 +71,88 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{entity.name}: a URDF arm is driven by plans only (the named '
                               'programs drive the PR2 gripper); give a plan([...])')
-    urdf = p['file']
+    path, file = p['file'], Path(p['file']).name
+    sdf = path.lower().endswith('.sdf')
     orientation = c.getQuaternionFromEuler(entity.pose.rpy)
-    body_id = c.loadURDF(urdf, entity.pose.xyz, orientation, useFixedBase=True,
-                         flags=c.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT)
+    try:
+        body_id = load_robot(c, path, entity.pose.xyz, orientation,
+                             flags=c.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT)
+    except ValueError as exc:
+        raise _fact(entity.name, 'file', f'{file}: {exc}') from None
     if body_id < 0:
-        raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'{entity.name}: cannot load {urdf}')
-    joints, links, kinds = {}, {}, {}
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'{entity.name}: cannot load {path}')
+    joints, links, kinds, parents = {}, {}, {}, {}
     for j in range(c.getNumJoints(body_id)):
         info = c.getJointInfo(body_id, j)
         joints[info[1].decode()] = j
         links[j] = info[12].decode()
         kinds[j] = info[2]
+        parents[j] = info[16]
     link_index = {name: j for j, name in links.items()}
-    missing = [n for n in p['finger_joints'] if n not in joints]
-    if p['tool_link'] not in link_index or missing:
-        unknown = missing or [p['tool_link']]
-        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
-                              f'{entity.name}: {Path(urdf).name} has no '
-                              f'{"joint" if missing else "link"} {", ".join(unknown)}')
+    for key, names, known, what in (('tool_link', [p['tool_link']], link_index, 'link'),
+                                     ('finger_joints', p['finger_joints'], joints, 'joint'),
+                                     ('pad_links', p.get('pad_links', []), link_index, 'link')):
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise _fact(entity.name, key, f'{file} has no {what} {", ".join(unknown)}')
     fingers = [joints[n] for n in p['finger_joints']]
-    arm = [j for j in sorted(kinds) if kinds[j] != c.JOINT_FIXED and j not in fingers]
+    revolute = _finger_kind(c, entity.name, p['finger_joints'], [kinds[j] for j in fingers])
+    tool = link_index[p['tool_link']]
+    chain, link = [], tool
+    while link >= 0:   # the joints from the base to the tool link
+        chain.append(link)
+        link = parents[link]
+    arm = [j for j in sorted(chain) if kinds[j] != c.JOINT_FIXED and j not in fingers]
+    weak = [links[j] for j in arm if c.getJointInfo(body_id, j)[10] <= 0]
+    if weak:
+        raise _fact(entity.name, 'tool_link', f'the joint to {", ".join(weak)} on the way to '
+                    f'{p["tool_link"]} has no effort limit in {file}: name a tool link before '
+                    'it, its offset reaching the pads')
+    mimics = {} if sdf else {joints[child]: (joints[parent], multiplier, offset)
+                             for child, (parent, multiplier, offset) in mimic_joints(path).items()
+                             if child in joints and parent in joints}
+    held = {j: _rest(c.getJointInfo(body_id, j)) for j in sorted(kinds)
+            if kinds[j] != c.JOINT_FIXED and j not in arm and j not in fingers
+            and j not in mimics}
     home = p.get('home')
     if home is not None and len(home) != len(arm):
-        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
-                              f'{entity.name}: home has {len(home)} values, the arm has '
-                              f'{len(arm)} joints')
+        raise _fact(entity.name, 'home', f'{len(home)} values, the arm has {len(arm)} joints '
+                    f'({", ".join(links[j] for j in arm)} move)')
     if home is None:
         home = [_middle(c.getJointInfo(body_id, j)) for j in arm]
     for link in range(-1, c.getNumJoints(body_id)):
         c.changeDynamics(body_id, link, lateralFriction=FRICTION)
     for joint, value in zip(arm, home):
         c.resetJointState(body_id, joint, value)
-    opening = sum(c.getJointInfo(body_id, j)[9] for j in fingers)
-    for finger in fingers:
-        c.resetJointState(body_id, finger, c.getJointInfo(body_id, finger)[9])
-    for child, parent in _mimics(urdf).items():
-        if child in joints and parent in joints:
-            _couple(c, body_id, joints[parent], joints[child])
-    physics.add_body(Body(entity.name, entity.cls, body_id, False, None, links=links,
-                          driven=True, urdf=urdf))
     gain = min(1.0, TRACKING_RATE / physics.settings.physics.rate_hz)
-    hand = Gripper(c, entity.name, body_id, {'fingers': fingers}, [],
-                   max_joint_force=max(c.getJointInfo(body_id, j)[10] for j in fingers),
-                   max_force=p['max_force'], max_opening=opening, position_gain=gain,
-                   finger_links=[links[j] for j in fingers])
-    hand.open(opening, speed=0.1)
+    if revolute:
+        hand = _linkage(physics, entity, body_id, fingers, mimics, held, links, gain)
+    else:
+        for key in ('finger_open', 'finger_closed'):
+            if key in p:
+                raise _fact(entity.name, key, 'the finger joints are prismatic: open is their '
+                            'upper limit, closed 0')
+        opening = sum(c.getJointInfo(body_id, j)[9] for j in fingers)
+        for finger in fingers:
+            c.resetJointState(body_id, finger, c.getJointInfo(body_id, finger)[9])
+        for child, (parent, _, _) in mimics.items():
+            _couple(c, body_id, parent, child, -1.0, 0.0)
+        pads = p.get('pad_links') or [links[j] for j in fingers]
+        hand = Gripper(c, entity.name, body_id, {'fingers': fingers}, [],
+                       max_joint_force=max(c.getJointInfo(body_id, j)[10] for j in fingers),
+                       max_force=p['max_force'], max_opening=opening, position_gain=gain,
+                       finger_links=pads)
+    for joint, value in held.items():
+        c.resetJointState(body_id, joint, value)
+        c.setJointMotorControl2(body_id, joint, c.POSITION_CONTROL, targetPosition=value,
+                                force=HOLD_FORCE, positionGain=gain)
+    physics.add_body(Body(entity.name, entity.cls, body_id, False, None, links=links,
+                          driven=True, urdf=None if sdf else path))
+    hand.open(hand.max_opening, speed=0.1)
     physics.grippers[entity.name] = hand
-    manipulator = Arm(c, entity.name, body_id, urdf, 1.0, (entity.pose.xyz, orientation), arm,
-                      link_index[p['tool_link']], p['tool_offset'], hand, gain)
+    tool_orientation = c.getQuaternionFromEuler(p.get('tool_rpy', (0.0, 0.0, 0.0)))
+    manipulator = Arm(c, entity.name, body_id, path, 1.0, (entity.pose.xyz, orientation), arm,
+                      tool, p['tool_offset'], hand, gain, tool_orientation)
     manipulator.servo(*manipulator.tool_pose())
     physics.manipulators[entity.name] = manipulator
 
@@ -113,6 +163,109 @@ def check(name: str, properties: dict[str, Any]) -> None:
     if missing:
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{name}: a urdf robot needs {", ".join(missing)}')
+    given = [key for key in ('finger_open', 'finger_closed') if key in properties]
+    if len(given) == 1:
+        raise _fact(name, given[0], 'finger_open and finger_closed come together (or both '
+                    "from the joints' limits)")
+    for key in given:
+        if len(properties[key]) != len(properties['finger_joints']):
+            raise _fact(name, key, f'{len(properties[key])} values for '
+                        f'{len(properties["finger_joints"])} finger joints')
+    if given and any(o == c for o, c in zip(properties['finger_open'],
+                                            properties['finger_closed'])):
+        raise _fact(name, 'finger_open', 'a finger joint open where it is closed does not '
+                    'move: finger_open and finger_closed differ for each')
+
+
+def _fact(robot: str, key: str, message: str) -> ProjectionError:
+    """The error of a fact ``key`` that does not fit the robot's model file."""
+    return ProjectionError(ErrorKind.INVALID_SCENARIO, f'{robot}: {key}: {message}')
+
+
+def _finger_kind(client: Any, robot: str, names: list[str], kinds: list[int]) -> bool:
+    """Whether the finger joints are revolute (else prismatic); they are all one or all the
+    other."""
+    kind = {client.JOINT_PRISMATIC: 'prismatic', client.JOINT_REVOLUTE: 'revolute'}
+    named = [kind.get(k, 'fixed or spherical') for k in kinds]
+    if 'fixed or spherical' in named or len(set(named)) > 1:
+        listed = ', '.join(f'{n} is {k}' for n, k in zip(names, named))
+        raise _fact(robot, 'finger_joints', f'they must be all prismatic or all revolute '
+                    f'({listed})')
+    return named[0] == 'revolute'
+
+
+def _linkage(physics: Physics, entity: Entity, body_id: int, fingers: list[int],
+             mimics: dict[int, tuple[int, float, float]], held: dict[int, float],
+             links: dict[int, str], gain: float) -> LinkageGripper:
+    """The revolute fingers' gripper: its opening table measured on the body before the
+    world runs (once per process, robot and pose), the fingers open."""
+    c, p = physics.client, entity.properties
+    infos = [c.getJointInfo(body_id, j) for j in fingers]
+    if 'finger_open' in p:
+        open_values, closed_values = list(p['finger_open']), list(p['finger_closed'])
+    else:
+        bad = [i[1].decode() for i in infos if not 0 < i[9] - i[8] <= 2 * math.pi]
+        if bad:
+            raise _fact(entity.name, 'finger_open', f'give finger_open and finger_closed: the '
+                        f'limits of {", ".join(bad)} in {Path(p["file"]).name} are not a '
+                        "finger's range (none, or wider than a turn)")
+        open_values, closed_values = [i[9] for i in infos], [i[8] for i in infos]
+    pad_names = p.get('pad_links')
+    if pad_names is None:
+        pads = _subtree(c, body_id, fingers, leaves=True)
+        if len(pads) < 2:
+            raise _fact(entity.name, 'pad_links', f'name the links that touch what the gripper '
+                        f'holds: the finger joints end in {", ".join(links[j] for j in pads)} '
+                        'alone')
+    else:
+        index = {name: j for j, name in links.items()}
+        pads = [index[n] for n in pad_names]
+    if 'finger_open' not in p:   # of the two limits, open is where the pads are further apart
+        ends = [gap(c, body_id, finger_values(fingers, open_values, closed_values, mimics,
+                                              held, u), pads) for u in (0.0, 1.0)]
+        if ends[1] < ends[0]:
+            open_values, closed_values = closed_values, open_values
+    for child, (parent, multiplier, offset) in mimics.items():
+        _couple(c, body_id, parent, child, -1.0 / multiplier if multiplier else -1.0,
+                -offset / multiplier if multiplier else 0.0)
+        c.setJointMotorControl2(body_id, child, c.VELOCITY_CONTROL, targetVelocity=0.0,
+                                force=0.0)
+    key = (p['file'], tuple(fingers), tuple(open_values), tuple(closed_values),
+           tuple(sorted(mimics.items())), tuple(sorted(held.items())), tuple(pads),
+           tuple(entity.pose.xyz), tuple(entity.pose.rpy))
+    table = cached_opening_table(key, c, body_id, fingers, open_values, closed_values,
+                                 mimics, held, pads)
+    if table[1][-1] - table[1][0] < MIN_STROKE:
+        raise _fact(entity.name, 'finger_open', f'the pads {", ".join(links[j] for j in pads)} '
+                    f'are {table[1][0] * 1000:.1f} mm apart closed and '
+                    f'{table[1][-1] * 1000:.1f} mm open: give the finger joints\' values '
+                    'that open and close the gripper (finger_open, finger_closed), and the '
+                    'links that touch what it holds (pad_links)')
+    for joint, value in finger_values(fingers, open_values, closed_values, mimics, held,
+                                      1.0).items():
+        c.resetJointState(body_id, joint, value)
+    torques = [max(i[10], 0.0) or HOLD_FORCE for i in infos]
+    carried = _subtree(c, body_id, [*fingers, *mimics])
+    hand = LinkageGripper(c, entity.name, body_id, fingers, open_values, closed_values, table,
+                          torques, p['max_force'], gain, [links[j] for j in pads], carried)
+    physics.step_hooks.append(hand.after_step)
+    return hand
+
+
+def _subtree(client: Any, body_id: int, joints: list[int],
+             leaves: bool = False) -> list[int]:
+    """The links that ``joints`` move (each joint's index is its child link's), sorted;
+    with ``leaves``, those at the ends of the subtrees only, in the joints' order."""
+    children: dict[int, list[int]] = {}
+    for j in range(client.getNumJoints(body_id)):
+        children.setdefault(client.getJointInfo(body_id, j)[16], []).append(j)
+    found, todo = [], list(joints)
+    while todo:
+        link = todo.pop(0)
+        todo.extend(children.get(link, []))
+        if link not in found and not (leaves and link in children):
+            found.append(link)
+    return found if leaves else sorted(found)
 
 
 def _middle(info: Any) -> float:
@@ -120,23 +273,34 @@ def _middle(info: Any) -> float:
     return 0.0 if upper < lower else (lower + upper) / 2   # continuous joints: 0
 
 
-def _couple(client: Any, body_id: int, parent: int, child: int) -> None:
-    """Fingers that move as one: a gear of ratio -1 between the two joints (their values
-    stay equal, the joints' axes being opposite)."""
+def _rest(info: Any) -> float:
+    """Where a joint of the gripper that is neither finger nor mimic is held: 0, or the
+    nearer limit."""
+    lower, upper = info[8], info[9]
+    return 0.0 if upper < lower else min(max(0.0, lower), upper)
+
+
+def _couple(client: Any, body_id: int, parent: int, child: int, ratio: float,
+            target: float) -> None:
+    """Joints that move as one: a gear keeping ``parent + ratio * child`` at ``target``
+    (Bullet's gear; a URDF mimic ``child = m parent + o`` is ratio -1/m, target -o/m)."""
     gear = client.createConstraint(body_id, parent, body_id, child, client.JOINT_GEAR,
                                    (1, 0, 0), (0, 0, 0), (0, 0, 0))
-    client.changeConstraint(gear, gearRatio=-1, maxForce=COUPLING_FORCE, erp=0.2)
+    client.changeConstraint(gear, gearRatio=ratio, relativePositionTarget=target,
+                            maxForce=COUPLING_FORCE, erp=0.2)
 
 
 @functools.cache
-def _mimics(urdf: str) -> dict[str, str]:
-    """The URDF's mimic joints: child joint name -> the joint it follows."""
+def mimic_joints(urdf: str) -> dict[str, tuple[str, float, float]]:
+    """The URDF's mimic joints: child joint name -> (the joint it follows, multiplier,
+    offset)."""
     try:
         root = ET.parse(urdf).getroot()
     except (OSError, ET.ParseError):
         return {}
-    return {joint.get('name'): mimic.get('joint') for joint in root.iter('joint')
-            for mimic in joint.iter('mimic')}
+    return {joint.get('name'): (mimic.get('joint'), float(mimic.get('multiplier', 1.0)),
+                                float(mimic.get('offset', 0.0)))
+            for joint in root.iter('joint') for mimic in joint.iter('mimic')}
 
 
 URDF_ARM = register(RobotModel('urdf', build, doc=__doc__.splitlines()[0],
