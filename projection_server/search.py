@@ -108,9 +108,11 @@ def ask(study: int, count: int) -> list[dict[str, Any]]:
     return trials
 
 
-def tell(study: int, trial: int, value: float | None, feasible: bool) -> None:
+def tell(study: int, trial: int, value: float | None, feasible: bool,
+         constraint: float | None = None) -> None:
     """Tell ``study`` the outcome of its running ``trial``: the objective ``value`` (None:
-    the trial had none: told as failed) and whether its constraint held."""
+    the trial had none: told as failed) and whether its constraint held, or by how much it
+    missed: ``constraint`` (<= 0: held; a chance constraint's gap to its probability)."""
     optuna = _optuna()
     s = _get(study)
     with s.lock, warnings.catch_warnings():
@@ -121,7 +123,9 @@ def tell(study: int, trial: int, value: float | None, feasible: bool) -> None:
         if value is None:
             s.study.tell(running, state=optuna.trial.TrialState.FAIL)
             return
-        running.set_constraint(CONSTRAINT, 0.0 if feasible else 1.0)
+        if constraint is None:
+            constraint = 0.0 if feasible else 1.0
+        running.set_constraint(CONSTRAINT, float(constraint))
         s.study.tell(running, float(value))
 
 

@@ -4,17 +4,21 @@
             best_parametrization/8      % +Scenario, +Program, +Params, +Options, -Timeline,
                                         % :Constraint, +Objective, -Best
           ]).
-:- autoload(library(apply), [maplist/2, maplist/3, maplist/4, foldl/4, partition/4]).
+:- autoload(library(apply),
+            [maplist/2, maplist/3, maplist/4, foldl/4, partition/4, exclude/3]).
+:- autoload(library(aggregate), [aggregate_all/3]).
+:- autoload(library(pairs), [pairs_keys_values/3]).
 :- autoload(library(error),
             [ must_be/2, domain_error/2, existence_error/2, type_error/2,
               instantiation_error/1, uninstantiation_error/1 ]).
-:- autoload(library(lists), [append/3, member/2, numlist/3]).
+:- autoload(library(lists), [append/3, member/2, numlist/3, sum_list/2]).
 :- use_module(library(janus), [py_call/2]).
 :- autoload(library(thread), [concurrent/3]).
 :- use_module(projection,
               [make_projection/5, projection_program/2, with_query_context/2,
                current_query_context/1, parameter_values/2]).
 :- use_module(timeline, [quantity/3, timeline_exists/1]).
+:- use_module(uncertainty, [wilson_interval/4]).
 
 :- meta_predicate
     outcome_boundary(+, +, +, +, -, 0, -),
@@ -279,8 +283,32 @@ truth(Timeline, TL, Goal, Holds) :-
 %       a node with another number of workers);
 %     - the options of make_projection/5, passed on to each of its calls.
 %
+%   Over a belief (the scenario's properties that are distributions), with
+%
+%     - samples(+N) and chance(+P): each trial is projected in the worlds
+%       0..N-1 of the seed (the same for every trial); its value is the
+%       mean of Objective over them, and it is feasible when the Wilson
+%       lower bound (95 %) of the fraction of them in which Constraint
+%       holds is at least P (0 < P < 1).  The sampler is told the gap P -
+%       low as the trial's constraint.  A trial costs N projections; one
+%       whose Wilson upper bound falls below P stops there (rounds of twice
+%       the workers' worlds), so a clearly infeasible trial costs few.
+%       max_projections defaults to 8 N.  Proving a chance of 0.95 takes 73
+%       worlds without a failure, 0.9 takes 35, 0.8 takes 16;
+%     - certify(+M): the best trial is then projected in M fresh worlds
+%       (default: the fewest that could prove P, 59 for 0.95), those of
+%       robust_parametrization/7's certificate, and Best gains `p`, `low`,
+%       `high` (one-sided Clopper-Pearson bounds at 95 %), `n` and
+%       `certified` (`low` >= P), all from the fresh worlds only.
+%
+%   Timeline is then the best parametrization's projection in the nominal
+%   world.
+%
 %   @error domain_error(range_parameters, Params) if no parameter of Params
 %          is `range(Low, High)`
+%   @error domain_error(samples_with_chance, O) for samples(N) without
+%          chance(P) or chance(P) without samples(N); domain_error(chance, P)
+%          for P outside (0, 1)
 %   @error domain_error(search_range, range(Low, High)) unless Low < High
 %   @error domain_error(search_option, Option) for outcome_boundary/7's
 %          options; domain_error(max_projections, max_projections(N)),
@@ -304,7 +332,12 @@ best_parametrization(Scenario, Program, Params, Options, Timeline, Constraint, O
     ->  domain_error(range_parameters, Params)
     ;   true
     ),
-    option_value(max_projections, Own, 32, Max),
+    belief_search(Own, Belief),
+    (   Belief = belief(Samples, _, _)
+    ->  DefaultMax is 8 * Samples
+    ;   DefaultMax = 32
+    ),
+    option_value(max_projections, Own, DefaultMax, Max),
     option_value(seed, Own, 0, Seed),
     option_value(batch, Own, workers, Batch),
     check_integer(max_projections, Max, 1),
@@ -317,17 +350,149 @@ best_parametrization(Scenario, Program, Params, Options, Timeline, Constraint, O
     check_ends(Program, Searched),
     fixed_combination(Fixed, FixedParams),
     maplist([searched(_, N, L, H), [N, L, H]]>>true, Searched, Space),
-    Run = run(Scenario, Program, Searched, FixedParams, Pass, Timeline, Constraint,
+    (   Belief = belief(_, _, _)
+    ->  Pass1 = [seed(Seed)|Pass]
+    ;   Pass1 = Pass
+    ),
+    Run = run(Scenario, Program, Searched, FixedParams, Pass1, Timeline, Constraint,
               Objective),
     setup_call_cleanup(
         py_call('projection_server.search':create(Space, Seed, Max), Study),
-        optimise(Run, Study, Workers, Max, 0, Spent, none, Found),
+        (   Belief == none
+        ->  optimise(Run, Study, Workers, Max, 0, Spent0, none, Found)
+        ;   py_call('projection_server.projection':workers(), Workers0),
+            optimise_belief(Run, Study, Belief, Workers, Workers0, Max, 0, Spent0, none,
+                            Found)
+        ),
         py_call('projection_server.search':release(Study))),
     Found = best(Values, Value, _, TL),
     maplist(bind_searched(Values), Searched),
-    best_timeline(Run, Values, TL, Timeline),
     foldl([(_, N, [V]), D0, D]>>put_dict(N, D0, V, D), FixedParams, Values, AllValues),
-    Best = _{params: AllValues, value: Value, projections: Spent}.
+    (   Belief = belief(_, Chance, Certify)
+    ->  certify_best(Run, Values, Certify, Successes),
+        Spent is Spent0 + Certify,
+        Risk is 1 - Chance,
+        py_call('projection_server.selection':certificate(Successes, Certify, 0.95, Risk),
+                py{p: P, low: Low, high: High, n: Certify, certified: Certified0}),
+        (   Certified0 == @(true) -> Certified = true ; Certified = false ),
+        Best = _{params: AllValues, value: Value, projections: Spent, p: P, low: Low,
+                 high: High, n: Certify, certified: Certified}
+    ;   Spent = Spent0,
+        Best = _{params: AllValues, value: Value, projections: Spent}
+    ),
+    best_timeline(Run, Values, TL, Timeline).
+
+% belief_search(+Own, -Belief): `none`, or belief(N, P, M): samples(N) worlds a trial,
+% chance(P) the probability its Constraint must have, certify(M) fresh worlds.
+belief_search(Own, Belief) :-
+    option_value(samples, Own, none, N),
+    option_value(chance, Own, none, P),
+    option_value(certify, Own, default, M0),
+    (   N == none, P == none
+    ->  (   M0 == default -> Belief = none ; domain_error(search_option, certify(M0)) )
+    ;   P == none
+    ->  domain_error(samples_with_chance, samples(N))
+    ;   N == none
+    ->  domain_error(samples_with_chance, chance(P))
+    ;   check_integer(samples, N, 1),
+        must_be(number, P),
+        (   P > 0, P < 1 -> true ; domain_error(chance, P) ),
+        (   M0 == default
+        ->  Risk is 1 - P,
+            py_call('projection_server.selection':certify_count(Risk, 0.95), M)
+        ;   check_integer(certify, M0, 1),
+            M = M0
+        ),
+        Belief = belief(N, P, M)
+    ).
+
+% optimise_belief(+Run, +Study, +Belief, +Batch, +Workers, +Max, +Spent0, -Spent,
+% +Best0, -Best): as optimise/8, each trial projected in the worlds of the belief, one
+% trial after another (its worlds run on all workers at once).  A trial's value is the
+% mean of the Objective over its worlds; it is feasible when the Wilson lower bound (95 %)
+% of the fraction of its worlds in which Constraint holds is at least the chance P, and
+% is told the gap P - low as its constraint (Optuna: <= 0 is feasible).
+optimise_belief(Run, Study, Belief, Batch, Workers, Max, Spent0, Spent, Best0, Best) :-
+    Belief = belief(N, _, _),
+    Left is Max - Spent0,
+    (   Left < N
+    ->  Spent = Spent0,
+        Best = Best0
+    ;   Count is max(1, min(Batch, Left // N)),
+        py_call('projection_server.search':ask(Study, Count), Trials),
+        foldl(belief_trial(Run, Study, Belief, Workers), Trials, Best0-Spent0, Best1-Spent1),
+        optimise_belief(Run, Study, Belief, Batch, Workers, Max, Spent1, Spent, Best1, Best)
+    ).
+
+belief_trial(Run, Study, belief(N, Chance, _), Workers, Trial, Best0-Spent0, Best-Spent) :-
+    trial_params(Trial, Number, Values),
+    dict_pairs(Values, _, Pairs0),
+    maplist([K-V, K-[V]]>>true, Pairs0, Lists),
+    Round is max(2, 2 * Workers),
+    belief_rounds(Run, Lists, N, Chance, Round, 0, 0, [], Successes, Made, ObjValues),
+    Spent is Spent0 + Made,
+    wilson_interval(Successes, Made, Low, _),
+    Gap is Chance - Low,
+    (   ObjValues == []
+    ->  Value = none
+    ;   sum_list(ObjValues, Sum),
+        length(ObjValues, L),
+        Value is Sum / L
+    ),
+    (   Value == none
+    ->  py_call('projection_server.search':tell(Study, Number, @(none), @(false)))
+    ;   py_call('projection_server.search':tell(Study, Number, Value, @(false),
+                                                constraint=Gap))
+    ),
+    (   Gap =< 0,
+        Value \== none,
+        (   Best0 = best(_, Value0, _, _)
+        ->  Value > Value0
+        ;   true
+        )
+    ->  Best = best(Values, Value, Number, none)
+    ;   Best = Best0
+    ).
+
+% belief_rounds(..., +From, +K0, +Vs0, -K, -Made, -Vs): the trial's worlds From on, in
+% rounds, until N worlds, or until its Wilson upper bound is below the chance (it
+% cannot be feasible): K of them with Constraint, Vs the Objective's values.
+belief_rounds(Run, Lists, N, Chance, Round, From, K0, Vs0, K, Made, Vs) :-
+    Run = run(Scenario, Program, Searched, FixedParams, Options, Timeline, Constraint,
+              Objective),
+    To is min(N, From + Round),
+    maplist(searched_param(Lists), Searched, Params, _),
+    append(Params, FixedParams, AllParams),
+    findall(Hit-V, ( make_projection(Scenario, Program, AllParams,
+                                     [worlds(From, To)|Options], TL),
+                     truth(Timeline, TL, Constraint, Holds),
+                     ( Holds == true -> Hit = 1 ; Hit = 0 ),
+                     objective_value(Objective, TL, V) ),
+            Outcomes),
+    pairs_keys_values(Outcomes, Hits, Vs1),
+    sum_list(Hits, Sum),
+    K1 is K0 + Sum,
+    exclude(==(none), Vs1, Numbers),
+    append(Vs0, Numbers, Vs2),
+    wilson_interval(K1, To, _, High),
+    (   ( To >= N ; High < Chance )
+    ->  K = K1, Made = To, Vs = Vs2
+    ;   belief_rounds(Run, Lists, N, Chance, Round, To, K1, Vs2, K, Made, Vs)
+    ).
+
+% certify_best(+Run, +Values, +M, -Successes): the best trial in M fresh worlds (those
+% of robust_parametrization/7's certificate).
+certify_best(Run, Values, M, Successes) :-
+    Run = run(Scenario, Program, Searched, FixedParams, Options, Timeline, Constraint, _),
+    maplist([searched(Var, Name, _, _), (Var, Name, [V])]>>get_dict(Name, Values, V),
+            Searched, Params),
+    append(Params, FixedParams, AllParams),
+    py_call('projection_server.selection':'CERTIFY_OFFSET', From),
+    To is From + M,
+    aggregate_all(count, ( make_projection(Scenario, Program, AllParams,
+                                           [worlds(From, To)|Options], TL),
+                           truth(Timeline, TL, Constraint, true) ),
+                  Successes).
 
 % optimise(+Run, +Study, +Workers, +Max, +Spent0, -Spent, +Best0, -Best): ask, project
 % and tell batches of trials until Max projections are spent.  Best is best(Values,
@@ -434,6 +599,7 @@ bind_searched(Values, searched(Var, Name, _, _)) :-
 % best_timeline(+Run, +Values, +TL, -Timeline): Best's timeline, made again from its
 % bag if it was removed since (translate/2 keeps the most recent ones).
 best_timeline(_, _, TL, Timeline) :-
+    TL \== none,
     timeline_exists(TL), !,
     Timeline = TL.
 best_timeline(Run, Values, _, Timeline) :-
@@ -508,6 +674,9 @@ search_option(boundary, coarse(_)).
 search_option(best, max_projections(_)).
 search_option(best, seed(_)).
 search_option(best, batch(_)).
+search_option(best, samples(_)).
+search_option(best, chance(_)).
+search_option(best, certify(_)).
 
 % Worlds drawn from a belief: a search's condition is of one projection.
 belief_option(samples(_)).
@@ -596,6 +765,14 @@ prolog:message(error(domain_error(search_range, range(Low, High)), _)) -->
 prolog:message(error(domain_error(max_projections(at_least(K)), max_projections(N)), _)) -->
     [ 'max_projections(~w) is smaller than the coarse pass, ~w projections: '-[N, K],
       'give a larger budget or a smaller coarse(K)' ].
+prolog:message(error(domain_error(samples_with_chance, samples(N)), _)) --> !,
+    [ 'samples(~w): a search over a belief needs chance(P), the probability its '-[N],
+      'Constraint must have' ].
+prolog:message(error(domain_error(samples_with_chance, chance(P)), _)) --> !,
+    [ 'chance(~w) needs samples(N): the worlds of the belief each trial is '-[P],
+      'projected in' ].
+prolog:message(error(domain_error(chance, P), _)) -->
+    [ 'chance(~w): a probability strictly between 0 and 1'-[P] ].
 prolog:message(error(domain_error(search_option, Option), _)) -->
     { belief_option(Option) }, !,
     [ '~q: a search projects the nominal world, one projection per value; '-[Option],

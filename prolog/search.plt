@@ -128,6 +128,20 @@ test(a_stepped_range_is_enumerated_as_make_projection_does, Values == [0.1, 0.2,
 
 test(samples_are_not_a_search_option, error(domain_error(search_option, samples(5)))) :-
     search:boundary_options([samples(5), tolerance(0.1)], _, _).
+test(chance_needs_samples, error(domain_error(samples_with_chance, chance(0.9)))) :-
+    search:belief_search([chance(0.9)], _).
+test(samples_need_a_chance, error(domain_error(samples_with_chance, samples(5)))) :-
+    search:belief_search([samples(5)], _).
+test(chance_is_a_probability, error(domain_error(chance, 1.5))) :-
+    search:belief_search([samples(5), chance(1.5)], _).
+test(certify_at_least_one, error(domain_error(certify, certify(0)))) :-
+    search:belief_search([samples(5), chance(0.9), certify(0)], _).
+test(a_belief_search, B == belief(16, 0.8, 5)) :-
+    search:best_options([samples(16), chance(0.8), certify(5), timeout(9)], Own, Pass),
+    Pass == [timeout(9)],
+    search:belief_search(Own, B).
+test(no_belief, B == none) :-
+    search:belief_search([max_projections(4)], B).
 test(worlds_are_not_a_search_option, error(domain_error(search_option, worlds(0, 2)))) :-
     search:best_options([worlds(0, 2)], _, _).
 
