@@ -10,7 +10,7 @@
             current_query_context/1,    % -Context:dict
             parameter_values/2          % +Range, -Values:list(number)
           ]).
-:- autoload(library(apply), [maplist/3, foldl/4]).
+:- autoload(library(apply), [maplist/3, foldl/4, include/3]).
 :- autoload(library(error),
             [ must_be/2, domain_error/2, existence_error/2, type_error/2,
               instantiation_error/1 ]).
@@ -102,7 +102,10 @@ on that projection's timeline:
 %     - seed(+K): the sequence the worlds are drawn from (default 0): the
 %       same seed draws the same worlds, whichever the parametrization;
 %     - worlds(+From, +To): the worlds From..To-1 of the sequence (samples(N)
-%       is worlds(0, N)).
+%       is worlds(0, N));
+%     - only(+Combinations): of Params' combinations only these, each a list
+%       of values in Params' order (e.g. the cells still in the running of a
+%       choice: their projections run on all workers as one enumeration).
 %
 %   A number as Options is the timeout.
 %
@@ -204,7 +207,8 @@ simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Shown
     % Made a Python dict once: every projection and prefetch of the query passes it on.
     py_call(dict(Description0), Description, [py_object(true)]),
     findall(Values, ( instantiate(Choices, Pairs),
-                      dict_pairs(Values, params, Pairs) ), All),
+                      dict_pairs(Values, params, Pairs) ), All0),
+    only_combinations(Options, Choices, All0, All),
     check_plan(Plan, All),
     % The units of the enumeration: each parametrization, in each world.
     findall(Values-World, ( member(Values, All), world(Worlds, World) ), Units),
@@ -221,6 +225,18 @@ simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Shown
     maplist(bind_choice(Values), Choices),
     shown(Values, World, Shown),
     run_simulation(Run, Values, World, Log).
+
+% only_combinations(+Options, +Choices, +All0, -All): All0 without the
+% combinations that option only(Combinations) leaves out.
+only_combinations(Options, Choices, All0, All) :-
+    is_list(Options),
+    memberchk(only(Combinations), Options), !,
+    include(in_combinations(Choices, Combinations), All0, All).
+only_combinations(_, _, All, All).
+
+in_combinations(Choices, Combinations, Values) :-
+    maplist([choice(_, Name, _), V]>>get_dict(Name, Values, V), Choices, Vs),
+    memberchk(Vs, Combinations).
 
 % world(+Worlds, -World): each world of the projection: @none for the
 % nominal one, else [Seed, Index].
@@ -353,6 +369,8 @@ check_option(seed(K)) :- !,
 check_option(worlds(From, To)) :- !,
     must_be(nonneg, From), must_be(integer, To),
     (   To > From -> true ; domain_error(worlds_range, worlds(From, To)) ).
+check_option(only(Combinations)) :- !,
+    must_be(list(list), Combinations).
 check_option(Option) :-
     domain_error(projection_option, Option).
 

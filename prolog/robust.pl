@@ -218,7 +218,11 @@ param_parts(Param, Var, Name, Range) :-
 choose_rounds(Run, Cells, S, From, Size, States0, States, Spent0, Spent) :-
     S = s(C, A, D, N, Batch),
     To is min(N, From + Size),
-    foldl(project_cell(Run, From, To), Cells, States0, States1, Spent0, Spent1),
+    findall(Values, ( nth0(I, Cells, Values), nth0(I, States0, cell(_, _)) ), Alive),
+    round(Run, Alive, From, To, Results),
+    maplist(add_round(Results), Cells, States0, States1),
+    length(Results, Made),
+    Spent1 is Spent0 + Made,
     maplist(state_outcomes, States1, Outcomes),
     py_call('projection_server.selection':step(Outcomes, C, A, D, N), Step),
     get_dict(eliminate, Step, Eliminate),
@@ -228,17 +232,27 @@ choose_rounds(Run, Cells, S, From, Size, States0, States, Spent0, Spent) :-
     ;   choose_rounds(Run, Cells, S, To, Batch, States2, States, Spent1, Spent)
     ).
 
-project_cell(_, _, _, _, none, none, Spent, Spent) :- !.
-project_cell(Run, From, To, Values, cell(Hits0, Qs0), cell(Hits, Qs), Spent0, Spent) :-
-    Run = run(_, _, _, _, _, TL, _, Prefer),
-    findall(Hit-Q, ( projection_in(Run, Values, worlds(From, To), Hit),
-                     prefer_value(Prefer, TL, Q) ),
-            Pairs),
+% round(+Run, +Alive, +From, +To, -Results): the cells Alive in worlds From to
+% To - 1, one make_projection/5 enumeration (its projections on all workers):
+% Values-(Hit-Quantity) for each, cell by cell, world by world.
+round(Run, Alive, From, To, Results) :-
+    Run = run(Scenario, Program, Params, Vars, Options, TL, Condition, Prefer),
+    findall(Vars-(Hit-Q),
+            ( make_projection(Scenario, Program, Params,
+                              [only(Alive), worlds(From, To)|Options], TL),
+              (   \+ \+ call(Condition)
+              ->  Hit = 1
+              ;   Hit = 0
+              ),
+              prefer_value(Prefer, TL, Q) ),
+            Results).
+
+add_round(_, _, none, none) :- !.
+add_round(Results, Values, cell(Hits0, Qs0), cell(Hits, Qs)) :-
+    findall(H-Q, member(Values-(H-Q), Results), Pairs),
     pairs_keys_values(Pairs, NewHits, NewQs),
     append(Hits0, NewHits, Hits),
-    append(Qs0, NewQs, Qs),
-    length(Pairs, L),
-    Spent is Spent0 + L.
+    append(Qs0, NewQs, Qs).
 
 % projection_in(+Run, +Values, +Worlds, -Hit): on backtracking, the cell
 % Values projected in each of the Worlds; Hit is 1 if Condition holds.

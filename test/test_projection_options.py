@@ -40,3 +40,16 @@ def test_finer_physics_multiply_the_default_limit_by_their_cost(prolog):
 def test_coarser_physics_keep_the_default_and_a_given_limit_is_kept(prolog):
     assert timeout(prolog, 'grasp_object', '[physics(_{rate_hz: 120})]') == 60
     assert timeout(prolog, 'grasp_object', '[timeout(5), physics(_{rate_hz: 960})]') == 5
+
+
+def test_only_keeps_the_combinations_it_names_in_the_grids_order(prolog):
+    found = prolog.query_once(
+        'projection:only_combinations([only([[9, b], [1, a]])], '
+        '[choice(_, f, [1, 5, 9]), choice(_, p, [a, b])], [_{f: 1, p: a}, _{f: 1, p: b}, '
+        '_{f: 9, p: b}], All)')['All']
+    assert [(d['f'], d['p']) for d in found] == [(1, 'a'), (9, 'b')]
+
+
+def test_only_must_be_a_list_of_lists(prolog):
+    with pytest.raises(prolog.PrologError, match='Type error'):
+        prolog.query_once('projection:check_option(only([5]))')
