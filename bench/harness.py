@@ -36,6 +36,7 @@ import math
 import os
 from pathlib import Path
 import platform
+import statistics
 import time
 from typing import Any, TYPE_CHECKING
 
@@ -73,6 +74,16 @@ def machine() -> str:
     """Python's version, the cores and the load average now: every settings line's end."""
     return (f'python {platform.python_version()}, {os.cpu_count()} cores, '
             f'load average {os.getloadavg()[0]:.1f}')
+
+
+def medians(rows: Mapping[str, list[tuple[float, int]]]) -> None:
+    """Print each query's median seconds and projections over its runs ``(seconds,
+    projections)``, with the runs' seconds."""
+    print(f'\n{"query":<12} {"median s":>9} {"projections":>12}   runs')
+    for name, runs in rows.items():
+        seconds = [s for s, _ in runs]
+        print(f'{name:<12} {statistics.median(seconds):9.2f} '
+              f'{statistics.median(n for _, n in runs):12.0f}   {listed(seconds)}')
 
 
 def listed(values: Iterable[float], digits: int = 2) -> str:

@@ -82,11 +82,7 @@ def main() -> int:
     finally:
         rclpy.try_shutdown()
 
-    print(f'\n{"query":<12} {"median s":>9} {"projections":>12}   runs')
-    for name, runs in rows.items():
-        seconds = [s for s, _ in runs]
-        print(f'{name:<12} {statistics.median(seconds):9.2f} '
-              f'{statistics.median(n for _, n in runs):12.0f}   {harness.listed(seconds)}')
+    harness.medians(rows)
     print(f'robust / nominal of the same round: median {statistics.median(ratios):.2f}x '
           f'({harness.listed(ratios)}); goal: a certified choice within 10 s; '
           f'{harness.machine()}')

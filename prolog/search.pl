@@ -444,15 +444,8 @@ belief_trial(Run, Study, belief(N, Chance, _), Workers, Trial, Best0-Spent0, Bes
     ;   py_call('projection_server.search':tell(Study, Number, Value, @(false),
                                                 constraint=Gap))
     ),
-    (   Gap =< 0,
-        Value \== none,
-        (   Best0 = best(_, Value0, _, _)
-        ->  Value > Value0
-        ;   true
-        )
-    ->  Best = best(Values, Value, Number, none)
-    ;   Best = Best0
-    ).
+    (   Gap =< 0 -> Feasible = true ; Feasible = false ),
+    keep_best(Feasible, best(Values, Value, Number, none), Best0, Best).
 
 % belief_rounds(..., +From, +K0, +Vs0, -K, -Made, -Vs): the trial's worlds From on, in
 % rounds, until N worlds, or until its Wilson upper bound is below the chance (it
@@ -583,13 +576,20 @@ tell_trial(Study, result(Number, Values, Feasible, Value, TL), Best0, Best) :-
     ),
     (   Feasible == true -> PyFeasible = @(true) ; PyFeasible = @(false) ),
     py_call('projection_server.search':tell(Study, Number, PyValue, PyFeasible)),
+    keep_best(Feasible, best(Values, Value, Number, TL), Best0, Best).
+
+% keep_best(+Feasible, +Candidate, +Best0, -Best): Candidate, best(Values, Value,
+% Trial, TL), if it is feasible, has a value and a larger one than Best0 (the first of
+% equals stays).
+keep_best(Feasible, Candidate, Best0, Best) :-
+    Candidate = best(_, Value, _, _),
     (   Feasible == true,
         Value \== none,
         (   Best0 = best(_, Value0, _, _)
         ->  Value > Value0
         ;   true
         )
-    ->  Best = best(Values, Value, Number, TL)
+    ->  Best = Candidate
     ;   Best = Best0
     ).
 
