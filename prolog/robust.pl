@@ -7,6 +7,7 @@
 :- autoload(library(error), [must_be/2, domain_error/2, existence_error/2]).
 :- autoload(library(lists), [append/3, member/2, nth0/3, sum_list/2]).
 :- autoload(library(option), [select_option/3]).
+:- autoload(library(aggregate), [aggregate_all/3]).
 :- autoload(library(pairs), [pairs_keys_values/3]).
 :- use_module(library(janus), [py_call/2]).
 :- use_module(projection, [make_projection/5, parameter_values/2]).
@@ -76,7 +77,9 @@ it).
 %     - certify(+M): the fresh worlds (default: the fewest that could prove
 %       the risk, 59 at the defaults);
 %     - samples(+N): at most N choosing worlds per cell (default 30);
-%     - batch(+B): worlds per round (default twice the workers);
+%     - batch(+B): worlds per round (default: as few as give the workers
+%       twice their number of projections, one world when the cells are
+%       many; give it to get the same choice on nodes with other workers);
 %     - prefer(+Rule): which of the equals: `margin` (the default: the one
 %       farthest from any cell that failed in some world, in the parameters'
 %       space scaled by their spans), `near(Values)` (nearest the values, in
@@ -110,10 +113,11 @@ robust_parametrization(Scenario, Program, Params, Options, TL, Condition, Best) 
     length(Cells, K),
     (   Batch0 == workers
     ->  py_call('projection_server.projection':workers(), W),
-        Batch is 2 * W
+        Batch = per_worker(W)
     ;   Batch = Batch0
     ),
-    py_call('projection_server.selection':first_round(K, C, A, Batch), First),
+    round_size(Batch, K, Size0),
+    py_call('projection_server.selection':first_round(K, C, A, Size0), First),
     Run = run(Scenario, Program, Params, Vars, [seed(Seed)|Pass], TL, Condition, Prefer),
     maplist([_, cell([], [])]>>true, Cells, States0),
     choose_rounds(Run, Cells, s(C, A, D, N, Batch), 0, First, States0, States, 0, Spent0),
@@ -229,8 +233,16 @@ choose_rounds(Run, Cells, S, From, Size, States0, States, Spent0, Spent) :-
     foldl(eliminate_cell, Eliminate, States1, States2),
     (   get_dict(stop, Step, @(true))
     ->  States = States2, Spent = Spent1
-    ;   choose_rounds(Run, Cells, S, To, Batch, States2, States, Spent1, Spent)
+    ;   aggregate_all(count, member(cell(_, _), States2), Left),
+        round_size(Batch, Left, Next),
+        choose_rounds(Run, Cells, S, To, Next, States2, States, Spent1, Spent)
     ).
+
+% round_size(+Batch, +Alive, -Worlds): a round's worlds: the given batch, or by
+% default as few as keep every worker busy, twice the workers' projections.
+round_size(per_worker(W), Alive, Worlds) :- !,
+    Worlds is max(1, ceiling(2 * W / Alive)).
+round_size(Batch, _, Batch).
 
 % round(+Run, +Alive, +From, +To, -Results): the cells Alive in worlds From to
 % To - 1, one make_projection/5 enumeration (its projections on all workers):
