@@ -12,7 +12,12 @@ program's own physics; then each cell grasps ``--eggs`` fresh true eggs, drawn f
 belief with another seed (``--truth-seed``: other worlds than the prediction's), at 4x the
 physics rate and 4x the solver iterations, standing in for the real world.
 
-Printed: per cell the prediction and the executed frequency; the Brier score (mean of
+With ``--physics fine,own`` the same eggs are also grasped at the program's own physics,
+the prediction's: that run's calibration is the statistics' alone, so the gap between the
+two is the projection's physics against the finer one.
+
+Printed, per execution physics: per cell the prediction and the executed frequency; the
+Brier score (mean of
 (p - y)^2 over the executions); the expected calibration error over 10 equal-width bins of
 p (ECE = sum over bins of n_b / n |mean y_b - mean p_b|) beside its noise floor, the ECE of a
 perfectly calibrated predictor on the same p's (y resampled ~ Bernoulli(p), ``--resamples``
@@ -91,6 +96,45 @@ def reliability(p: np.ndarray, y: np.ndarray, floor: np.ndarray, path: Path,
     plt.close(fig)
 
 
+def report(args, kind: str, physics: dict, predicted: dict, executed: list, seconds: float,
+           diagram: bool) -> None:
+    """One execution physics' table, scores and (``diagram``) reliability diagram."""
+    outcomes: dict[tuple[float, float], list[int]] = {}
+    for s in executed:
+        outcomes.setdefault((float(s['F']), float(s['P'])), []).append(int(s['Y']))
+    p = np.array([predicted[c] for c, ys in outcomes.items() for _ in ys])
+    y = np.array([v for ys in outcomes.values() for v in ys], dtype=float)
+    say()
+    shown = physics or "(the program's own)"
+    say(f'  executed at {kind} physics {shown}: {len(y)} grasps in {seconds:.0f} s')
+    say('  cell (force N, position m)   predicted P(ok)   executed ok')
+    for cell, ys in sorted(outcomes.items()):
+        if predicted[cell] not in (0.0, 1.0) or 0 < sum(ys) < len(ys) or \
+                (predicted[cell] == 1.0) != (sum(ys) == len(ys)):
+            say(f'  {cell[0]:4.0f} {cell[1]:+.2f}                  {predicted[cell]:.3f}'
+                f'            {sum(ys)}/{len(ys)}')
+    say('  (the other cells: predicted 0 or 1 and executed alike)')
+    brier = float(np.mean((p - y) ** 2))
+    error = ece(p, y)
+    rng = np.random.default_rng(args.seed)
+    floor = np.array([ece(p, (rng.random(len(p)) < p).astype(float))
+                      for _ in range(args.resamples)])
+    floor_brier = np.array([np.mean((p - (rng.random(len(p)) < p)) ** 2)
+                            for _ in range(args.resamples)])
+    say(f'  Brier score {brier:.4f} (a calibrated predictor on the same p: median '
+        f'{np.median(floor_brier):.4f}, 95th percentile {np.percentile(floor_brier, 95):.4f})')
+    say(f'  ECE ({BINS} bins) {error:.4f}; noise floor median {np.median(floor):.4f}, 95th '
+        f'percentile {np.percentile(floor, 95):.4f}: '
+        f'{"within" if error <= np.percentile(floor, 95) else "ABOVE"} the floor')
+    if diagram:
+        args.png.parent.mkdir(parents=True, exist_ok=True)
+        reliability(p, y, floor, args.png,
+                    f'33 grasp cells x {args.eggs} fresh eggs at {kind} physics\n'
+                    f'predicted from {args.samples} belief worlds; ECE {error:.3f} (floor '
+                    f'95th pct {np.percentile(floor, 95):.3f}), Brier {brier:.3f}')
+        say(f'  reliability diagram: {args.png}')
+
+
 def main() -> int:
     parser = harness.arguments(__doc__, seed=11)
     parser.add_argument('--samples', type=int, default=30,
@@ -102,7 +146,11 @@ def main() -> int:
     parser.add_argument('--resamples', type=int, default=2000,
                         help='draws of the noise floor (2000)')
     parser.add_argument('--workers', type=int, default=2)
-    parser.add_argument('--png', type=Path, default=Path('docs/calibration_grasp.png'))
+    parser.add_argument('--physics', default='fine',
+                        help="execution physics, comma-separated: fine (4x rate and "
+                             "iterations), own (the prediction's) (fine)")
+    parser.add_argument('--png', type=Path, default=Path('docs/calibration_grasp.png'),
+                        help='the reliability diagram of the first --physics')
     args = parser.parse_args()
     harness.ros_domain(180)
 
@@ -110,7 +158,8 @@ def main() -> int:
 
     say(f'calibration: {len(FORCES) * len(POSITIONS)} grasp cells, prediction from '
         f'{args.samples} belief worlds (seed {args.seed}), {args.eggs} fresh eggs a cell '
-        f'(seed {args.truth_seed}) at 4x physics; {args.workers} workers; {harness.machine()}')
+        f'(seed {args.truth_seed}) at {args.physics} physics; {args.workers} workers; '
+        f'{harness.machine()}')
     started = time.perf_counter()
     rclpy.init()
     try:
@@ -130,51 +179,23 @@ def main() -> int:
                         f'copy_scenario(grasping, S), {BELIEF}, outcome_probability(S, '
                         f'grasp_object, {grid}, [samples({args.samples}), seed({args.seed})],'
                         f' TL, {OK}, Pr)', timeout=3600.0, max_solutions=10_000)}
-                t1 = time.perf_counter()
-                fine = ', '.join(f'{k}: {v}' for k, v in physics.items())
-                executed = client.all(
-                    f'copy_scenario(grasping, S), {BELIEF}, make_projection(S, grasp_object, '
-                    f'{grid}, [samples({args.eggs}), seed({args.truth_seed}), '
-                    f'physics(_{{{fine}}}), timeout(7200)], TL), ( {OK} -> Y = 1 ; Y = 0 )',
-                    timeout=3600.0, max_solutions=10_000)
-                t2 = time.perf_counter()
+                predicting = time.perf_counter() - t0
+                runs = {}
+                for kind in args.physics.split(','):
+                    chosen = physics if kind == 'fine' else {}
+                    setting = ', '.join(f'{k}: {v}' for k, v in chosen.items())
+                    t1 = time.perf_counter()
+                    runs[kind] = (chosen, client.all(
+                        f'copy_scenario(grasping, S), {BELIEF}, make_projection(S, '
+                        f'grasp_object, {grid}, [samples({args.eggs}), '
+                        f'seed({args.truth_seed}), physics(_{{{setting}}}), timeout(3600)], '
+                        f'TL), ( {OK} -> Y = 1 ; Y = 0 )',
+                        timeout=3600.0, max_solutions=10_000), time.perf_counter() - t1)
     finally:
         rclpy.try_shutdown()
-    outcomes: dict[tuple[float, float], list[int]] = {}
-    for s in executed:
-        outcomes.setdefault((float(s['F']), float(s['P'])), []).append(int(s['Y']))
-    p = np.array([predicted[c] for c, ys in outcomes.items() for _ in ys])
-    y = np.array([v for ys in outcomes.values() for v in ys], dtype=float)
-    say(f'  predictions: {len(predicted)} cells x {args.samples} worlds in {t1 - t0:.0f} s; '
-        f'executions: {len(y)} at {physics} in {t2 - t1:.0f} s')
-    say()
-    say('  cell (force N, position m)   predicted P(ok)   executed ok')
-    for cell, ys in sorted(outcomes.items()):
-        if predicted[cell] not in (0.0, 1.0) or 0 < sum(ys) < len(ys) or \
-                (predicted[cell] == 1.0) != (sum(ys) == len(ys)):
-            say(f'  {cell[0]:4.0f} {cell[1]:+.2f}                  {predicted[cell]:.3f}'
-                f'            {sum(ys)}/{len(ys)}')
-    say('  (the other cells: predicted 0 or 1 and executed alike)')
-    brier = float(np.mean((p - y) ** 2))
-    error = ece(p, y)
-    rng = np.random.default_rng(args.seed)
-    floor = np.array([ece(p, (rng.random(len(p)) < p).astype(float))
-                      for _ in range(args.resamples)])
-    floor_brier = np.array([np.mean((p - (rng.random(len(p)) < p)) ** 2)
-                            for _ in range(args.resamples)])
-    say()
-    say(f'  executions {len(y)}; Brier score {brier:.4f} (a calibrated predictor on the same '
-        f'p: median {np.median(floor_brier):.4f}, 95th percentile '
-        f'{np.percentile(floor_brier, 95):.4f})')
-    say(f'  ECE ({BINS} bins) {error:.4f}; noise floor median {np.median(floor):.4f}, 95th '
-        f'percentile {np.percentile(floor, 95):.4f}: '
-        f'{"within" if error <= np.percentile(floor, 95) else "ABOVE"} the floor')
-    args.png.parent.mkdir(parents=True, exist_ok=True)
-    reliability(p, y, floor, args.png,
-                f'grasp_object, 33 cells: predicted from {args.samples} belief worlds, '
-                f'executed on {args.eggs} fresh eggs a cell at 4x physics\nECE {error:.3f} '
-                f'(floor 95th pct {np.percentile(floor, 95):.3f}), Brier {brier:.3f}')
-    say(f'  reliability diagram: {args.png}')
+    say(f'  predictions: {len(predicted)} cells x {args.samples} worlds in {predicting:.0f} s')
+    for index, (kind, (chosen, executed, seconds)) in enumerate(runs.items()):
+        report(args, kind, chosen, predicted, executed, seconds, index == 0)
     say(f'calibration: {time.perf_counter() - started:.0f} s in all; {harness.machine()}')
     return 0
 
