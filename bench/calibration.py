@@ -8,9 +8,11 @@ When the truth *is* the belief, a predicted probability of 0.8 should come true 
 positions -0.02, 0, 0.02 m) and its belief (egg1's friction uniform(0.2, 0.4),
 breaking_force normal(10, 1.5)), each cell's P(ok) (no slip, no break) is predicted by
 ``outcome_probability/7`` from ``--samples`` worlds of the belief (seed ``--seed``) at the
-program's own physics; then each cell grasps ``--eggs`` fresh true eggs, drawn from the same
-belief with another seed (``--truth-seed``: other worlds than the prediction's), at 4x the
-physics rate and 4x the solver iterations, standing in for the real world.
+program's own physics; then each cell grasps ``--eggs`` fresh true eggs of its own, drawn
+from the same belief with another seed (``--truth-seed``; cell i takes that seed's worlds
+i * eggs to (i + 1) * eggs - 1, so that the executions are independent of each other and
+of the prediction's worlds), at 4x the physics rate and 4x the solver iterations, standing
+in for the real world.
 
 With ``--physics fine,own`` the same eggs are also grasped at the program's own physics,
 the prediction's: that run's calibration is the statistics' alone, so the gap between the
@@ -185,12 +187,19 @@ def main() -> int:
                     chosen = physics if kind == 'fine' else {}
                     setting = ', '.join(f'{k}: {v}' for k, v in chosen.items())
                     t1 = time.perf_counter()
-                    runs[kind] = (chosen, client.all(
-                        f'copy_scenario(grasping, S), {BELIEF}, make_projection(S, '
-                        f'grasp_object, {grid}, [samples({args.eggs}), '
-                        f'seed({args.truth_seed}), physics(_{{{setting}}}), timeout(3600)], '
-                        f'TL), ( {OK} -> Y = 1 ; Y = 0 )',
-                        timeout=3600.0, max_solutions=10_000), time.perf_counter() - t1)
+                    executed = []
+                    for index, (force, position) in enumerate(
+                            (f, q) for f in FORCES for q in POSITIONS):
+                        # eggs of their own for each cell: independent executions
+                        first = index * args.eggs
+                        executed += client.all(
+                            f'copy_scenario(grasping, S), {BELIEF}, make_projection(S, '
+                            f'grasp_object, [(F, force, [{force}]), (P, position, '
+                            f'[{position}])], [worlds({first}, {first + args.eggs}), '
+                            f'seed({args.truth_seed}), physics(_{{{setting}}}), '
+                            f'timeout(3600)], TL), ( {OK} -> Y = 1 ; Y = 0 )',
+                            timeout=3600.0, max_solutions=10_000)
+                    runs[kind] = (chosen, executed, time.perf_counter() - t1)
     finally:
         rclpy.try_shutdown()
     say(f'  predictions: {len(predicted)} cells x {args.samples} worlds in {predicting:.0f} s')
