@@ -1,6 +1,6 @@
 """The paper's promise, measured on paired worlds: does projecting first reduce the undesired outcomes?
 
-    tools/with_env.sh python bench/closed_loop.py                 # grasp and push, ~25 min
+    tools/with_env.sh python bench/closed_loop.py                 # grasp and push, ~50 min
     tools/with_env.sh python bench/closed_loop.py --only grasp --eggs 50 --truth wider,belief
     tools/with_env.sh python bench/closed_loop.py --only pour     # not in the default run
 
@@ -58,14 +58,16 @@ the lower its friction; too far and it slides off the table's edge. Belief: box1
 uniform(0.15, 0.6) (nominal 0.375); truth uniform(0.1, 0.7). Undesired: a fall
 (occurs(drop(box1), _, TL)); utility: the box's displacement if it stays on the table, 0 if
 it falls. The displacement pulls the nominal optimum to the edge of the fall: a cliff.
-  (a): a fixed distance of 0.1 m (``--push-default``), a cautious push chosen without
-  projecting.
+  (a): a fixed distance of 0.1 m (``--push-default``), a round figure chosen without
+  projecting (in the nominal world the box stays on the table up to about 0.19 m).
   (b): best_parametrization/8 in the nominal world maximising displacement(box1) subject to
   \\+ occurs(drop(box1), _, TL), max_projections(``--push-nominal-budget``, 32).
   (c): the same with samples(``--push-samples``, 35) and chance(``--push-chance``, 0.9):
   35 worlds are the fewest that can prove 0.9 (Wilson, 95 %), so a feasible trial is one
-  whose box stayed on the table in all 35; max_projections (``--push-budget``) its default
-  8 N (280), certified on the fresh worlds that can prove the chance.
+  whose box stayed on the table in all 35; max_projections(``--push-budget``, 560: 16 N,
+  twice best_parametrization/8's default, which left the search at the range's start with
+  seed 1, bench/RESULTS.md 2026-11-28), certified on the fresh worlds that can prove the
+  chance (29 for 0.9, one-sided Clopper-Pearson).
 
 Pour (``--only pour``, ``--pours``, default 20; not in the default run: a fine pour takes
 40-60 s of a worker, so 20 pours of three policies take about 25 min on 2 workers and a
@@ -80,10 +82,13 @@ runnier the batter (bench/RESULTS.md, 2026-11-26: at -0.08 to -0.09 m a damping 
 spills where 50 /s does not). So the nominal optimum is the longest hold that does not spill
 at damping 30, at the edge of the spill of a runnier batter. (a): time 0.5 s (the program's
 default); (b), (c): as for the push, maximising particles_on(pancake_maker1) subject to
-\\+ occurs(spill(_), _, TL), (c) with samples(``--pour-samples``, 16) and chance(0.8).
+\\+ occurs(spill(_), _, TL), (b) with max_projections(16), (c) with
+samples(``--pour-samples``, 16), chance(0.8) and max_projections(4 N). The cliff is this
+design's argument, not yet a measurement: the pour has not been run on it.
 
-With the defaults the grasp and the push take about 25 minutes on 2 cores shared with other
-work (bench/RESULTS.md, 2026-11-28).
+With the defaults the grasp and the push take about 50 minutes on 2 cores shared with
+another benchmark (load 5-7; the grasp's nine robust decisions are most of it, 1.5-2.5 min
+each), less on a quiet machine (bench/RESULTS.md, 2026-11-28).
 """
 
 from __future__ import annotations
@@ -555,8 +560,9 @@ def main() -> int:
                         help="(c)'s worlds of the belief per push trial (35)")
     parser.add_argument('--push-chance', type=float, default=0.9,
                         help="(c)'s chance that the box stays on the table (0.9)")
-    parser.add_argument('--push-budget', type=int, default=0,
-                        help="(c)'s max_projections (0: its default, 8 x --push-samples)")
+    parser.add_argument('--push-budget', type=int, default=560,
+                        help="(c)'s max_projections (560; 0: best_parametrization/8's "
+                             'default, 8 x --push-samples)')
     parser.add_argument('--push-nominal-budget', type=int, default=32,
                         help="(b)'s max_projections (32)")
     parser.add_argument('--pour-samples', type=int, default=16,
