@@ -1,6 +1,6 @@
 """The paper's promise, measured on paired worlds: does projecting first reduce the undesired outcomes?
 
-    tools/with_env.sh python bench/closed_loop.py                 # grasp and push, ~50 min
+    tools/with_env.sh python bench/closed_loop.py                 # grasp and push, ~45 min
     tools/with_env.sh python bench/closed_loop.py --only grasp --eggs 50 --truth wider,belief
     tools/with_env.sh python bench/closed_loop.py --only pour     # not in the default run
 
@@ -86,7 +86,7 @@ default); (b), (c): as for the push, maximising particles_on(pancake_maker1) sub
 samples(``--pour-samples``, 16), chance(0.8) and max_projections(4 N). The cliff is this
 design's argument, not yet a measurement: the pour has not been run on it.
 
-With the defaults the grasp and the push take about 50 minutes on 2 cores shared with
+With the defaults the grasp and the push take about 45 minutes on 2 cores shared with
 another benchmark (load 5-7; the grasp's nine robust decisions are most of it, 1.5-2.5 min
 each), less on a quiet machine (bench/RESULTS.md, 2026-11-28).
 """
