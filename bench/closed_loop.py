@@ -1,4 +1,4 @@
-"""The paper's promise, measured on paired worlds: does projecting first reduce the undesired outcomes?
+"""The paper's promise on paired worlds: does projecting first reduce the undesired outcomes?
 
     tools/with_env.sh python bench/closed_loop.py                 # grasp and push, ~45 min
     tools/with_env.sh python bench/closed_loop.py --only grasp --eggs 50 --truth wider,belief
