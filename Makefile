@@ -27,6 +27,7 @@ bench: setup
 	@tools/with_env.sh python bench/flat_memory.py --solutions 200
 	@tools/with_env.sh python bench/search_cost.py
 	@tools/with_env.sh python bench/robust_answer.py
+	@tools/with_env.sh python bench/robust_choice.py
 
 reproduce: setup
 	@tools/with_env.sh projection_reproduce --out reports $(ARGS)
