@@ -76,6 +76,18 @@ def machine() -> str:
             f'load average {os.getloadavg()[0]:.1f}')
 
 
+def timed(c: PrologClient, bags: Path, text: str, *, once: bool = False,
+          timeout: float = 900.0) -> tuple[float, int, Any]:
+    """``text`` asked of client ``c`` (all solutions, or with ``once`` the first): its wall
+    seconds, the bags it added to ``bags`` and its answer."""
+    before = sum(1 for _ in bags.iterdir()) if bags.exists() else 0
+    start = time.perf_counter()
+    answer = (c.once(text, timeout=timeout) if once
+              else c.all(text, timeout=timeout, max_solutions=10_000))
+    elapsed = time.perf_counter() - start
+    return elapsed, sum(1 for _ in bags.iterdir()) - before, answer
+
+
 def medians(rows: Mapping[str, list[tuple[float, int]]]) -> None:
     """Print each query's median seconds and projections over its runs ``(seconds,
     projections)``, with the runs' seconds."""

@@ -25,7 +25,6 @@ import contextlib
 from pathlib import Path
 import statistics
 import tempfile
-import time
 
 import harness
 
@@ -42,14 +41,6 @@ ROBUST = (f'{BELIEF}, once(( outcome_probability(S, grasp_object, '
 EVERY_CELL = (f'{BELIEF}, outcome_probability(S, grasp_object, '
               f'[(P, position, [-0.02, 0.00, 0.02]), (F, force, {FORCES})], '
               '[samples(30), seed({seed})], TL, ' + OK + ', Pr)')
-
-
-def timed(c, bags: Path, how: str, text: str) -> tuple[float, int, object]:
-    before = sum(1 for _ in bags.iterdir()) if bags.exists() else 0
-    start = time.perf_counter()
-    answer = c.all(text, timeout=900) if how == 'all' else c.once(text, timeout=900)
-    elapsed = time.perf_counter() - start
-    return elapsed, sum(1 for _ in bags.iterdir()) - before, answer
 
 
 def probability(solution: dict) -> dict:
@@ -79,8 +70,9 @@ def main() -> int:
             c = stack.enter_context(harness.client())
             for round_ in range(args.repeat):
                 seed = args.seed + round_
-                t_table, n_table, table = timed(c, bags, 'all', TABLE_I)
-                t_robust, n_robust, robust = timed(c, bags, 'once', ROBUST.format(seed=seed))
+                t_table, n_table, table = harness.timed(c, bags, TABLE_I)
+                t_robust, n_robust, robust = harness.timed(c, bags, ROBUST.format(seed=seed),
+                                                           once=True)
                 rows['table_i'].append((t_table, n_table))
                 rows['robust'].append((t_robust, n_robust))
                 ratios.append(t_robust / t_table)
@@ -91,7 +83,8 @@ def main() -> int:
                       f'[{p["low"]:.3f}, {p["high"]:.3f}] over {p["n"]} worlds (seed {seed})',
                       flush=True)
             if args.every_cell:
-                t_all, n_all, cells = timed(c, bags, 'all', EVERY_CELL.format(seed=args.seed))
+                t_all, n_all, cells = harness.timed(c, bags,
+                                                    EVERY_CELL.format(seed=args.seed))
                 rows['every_cell'] = [(t_all, n_all)]
                 print(f'every cell: {t_all:.2f} s ({n_all} projections, {len(cells)} cells)')
     finally:

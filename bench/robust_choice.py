@@ -23,7 +23,6 @@ import contextlib
 from pathlib import Path
 import statistics
 import tempfile
-import time
 
 import harness
 
@@ -35,14 +34,6 @@ ROBUST = ('copy_scenario(grasping, S), '
           'scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)), '
           'scenario_set_property(S, egg1, breaking_force, normal(10, 1.5)), '
           f'robust_parametrization(S, grasp_object, {GRID}, [seed({{seed}})], TL, {OK}, B)')
-
-
-def timed(c, bags: Path, text: str) -> tuple[float, int, list]:
-    before = sum(1 for _ in bags.iterdir()) if bags.exists() else 0
-    start = time.perf_counter()
-    answer = c.all(text, timeout=3600, max_solutions=100)
-    elapsed = time.perf_counter() - start
-    return elapsed, sum(1 for _ in bags.iterdir()) - before, answer
 
 
 def main() -> int:
@@ -67,8 +58,9 @@ def main() -> int:
             c = stack.enter_context(harness.client())
             for round_ in range(args.repeat):
                 seed = args.seed + round_
-                t_nominal, n_nominal, _ = timed(c, bags, NOMINAL)
-                t_robust, n_robust, (robust,) = timed(c, bags, ROBUST.format(seed=seed))
+                t_nominal, n_nominal, _ = harness.timed(c, bags, NOMINAL, timeout=3600)
+                t_robust, n_robust, (robust,) = harness.timed(
+                    c, bags, ROBUST.format(seed=seed), timeout=3600)
                 rows['nominal'].append((t_nominal, n_nominal))
                 rows['robust'].append((t_robust, n_robust))
                 ratios.append(t_robust / t_nominal)

@@ -156,15 +156,22 @@ SAMPLED = '''copy_scenario(grasping, S),
                       ; O = ok ) ), Worlds)'''
 
 
-def test_worlds_drawn_from_a_belief_are_the_same_on_both_backends(ray_query, call):
-    r = ray_query.wait(ray_query(SAMPLED, timeout=TABLE_TIMEOUT))
+def same_on_both_backends(ray_query, call, text):
+    """The solutions of ``text`` on the ray node, asserted equal to the local node's but
+    for the scenario and timeline handles, which are per node."""
+    r = ray_query.wait(ray_query(text, timeout=TABLE_TIMEOUT))
     assert r.ok, r.message
-    local = call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=SAMPLED,
+    local = call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=text,
                                          timeout=TABLE_TIMEOUT), timeout=TABLE_TIMEOUT + 60.0)
     assert local.ok, local.message
     strip = ('TL', 'S')
     made = [{k: v for k, v in s.items() if k not in strip} for s in solutions(r)]
     assert made == [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    return made
+
+
+def test_worlds_drawn_from_a_belief_are_the_same_on_both_backends(ray_query, call):
+    made = same_on_both_backends(ray_query, call, SAMPLED)
     assert len(made) == 2 and all(len(s['Worlds']) == 6 for s in made)
     # both forces met the same six eggs
     assert [w[0] for w in made[0]['Worlds']] == [w[0] for w in made[1]['Worlds']]
@@ -179,14 +186,7 @@ ROBUST = """copy_scenario(grasping, S),
 
 
 def test_a_robust_choice_is_the_same_on_both_backends(ray_query, call):
-    r = ray_query.wait(ray_query(ROBUST, timeout=TABLE_TIMEOUT))
-    assert r.ok, r.message
-    local = call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=ROBUST,
-                                         timeout=TABLE_TIMEOUT), timeout=TABLE_TIMEOUT + 60.0)
-    assert local.ok, local.message
-    strip = ('TL', 'S')
-    made = [{k: v for k, v in s.items() if k not in strip} for s in solutions(r)]
-    assert made == [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    made = same_on_both_backends(ray_query, call, ROBUST)
     assert made[0]['F'] == 5, made
 
 
