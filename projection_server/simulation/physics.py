@@ -304,6 +304,9 @@ class Physics:
         self.bodies_version = 0   # changes whenever a body or fluid is added or replaced
         self._names: dict[int, str] = {}
         self._step_contacts: dict[int, Any] = {}   # body id -> its contact points this step
+        # fluid -> (step, positions, velocities or None): read once per step, however many
+        # step hooks and samples want them
+        self._fluid_states: dict[str, tuple[int, np.ndarray, np.ndarray | None]] = {}
         # (bodies_version, {(body, link): (body name, link name)}) of contacts()
         self._frames: tuple[int, dict[tuple[int, int], tuple[str | None, str]]] = (-1, {})
 
@@ -316,6 +319,7 @@ class Physics:
         self.shapes_changed = True
         self.bodies_version += 1
         self._step_contacts = {}
+        self._fluid_states = {}
         return body
 
     def add_fluid(self, fluid: Fluid) -> Fluid:
@@ -325,6 +329,7 @@ class Physics:
         self.fluids[fluid.name] = fluid
         self.bodies_version += 1
         self._step_contacts = {}
+        self._fluid_states = {}
         return fluid
 
     def replace_body(self, name: str, body_id: int, shape: Shape) -> Body:
@@ -338,6 +343,7 @@ class Physics:
         self.shapes_changed = True
         self.bodies_version += 1
         self._step_contacts = {}
+        self._fluid_states = {}
         return new
 
     def body(self, name: str) -> Body:
@@ -418,9 +424,28 @@ class Physics:
 
     def particle_positions(self, fluid: str) -> np.ndarray:
         """World positions of a fluid's particles, shape (n, 3) [m]."""
-        get = self.client.getBasePositionAndOrientation
+        return self.particle_state(fluid)[0]
+
+    def particle_state(self, fluid: str, velocities: bool = False
+                       ) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(positions, velocities)`` of a fluid's particles, shapes (n, 3) [m, m/s], read
+        once per step (velocities None unless asked for). Do not change them."""
+        state = self._fluid_states.get(fluid)
+        if state is not None and state[0] == self.step_count and (
+                state[2] is not None or not velocities):
+            return state[1], state[2]
         ids = self.fluids[fluid].body_ids
-        return np.array([get(i)[0] for i in ids], dtype=float).reshape(len(ids), 3)
+        if state is not None and state[0] == self.step_count:
+            positions = state[1]
+        else:
+            get = self.client.getBasePositionAndOrientation
+            positions = np.array([get(i)[0] for i in ids], dtype=float).reshape(len(ids), 3)
+        speeds = None
+        if velocities:
+            get = self.client.getBaseVelocity
+            speeds = np.array([get(i)[0] for i in ids], dtype=float).reshape(len(ids), 3)
+        self._fluid_states[fluid] = (self.step_count, positions, speeds)
+        return positions, speeds
 
     def gripper_opening(self, gripper: str) -> float:
         return self.grippers[gripper].opening()

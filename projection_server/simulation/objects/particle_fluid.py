@@ -1,6 +1,8 @@
 """``particle_fluid``: ``particle_count`` spheres, registered as one :class:`Fluid` (contacts
 are reported under the fluid's name), their velocities damped by the fluid's ``damping``
-(viscosity: Bullet decelerates a particle by ``damping * v * (1 + |v|)``). With a
+(a drag against the world: Bullet decelerates a particle by ``damping * v * (1 + |v|)``),
+held together by its ``surface_tension`` and its ``viscosity`` between neighbours
+(:mod:`projection_server.simulation.batter.forces`). With a
 ``container`` (an entity built before it, e.g. the owning cup) they fill its inside from
 the bottom in hexagonal layers; without one they form a cubic block at the pose."""
 
@@ -12,6 +14,7 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation.batter import BatterForces
 from projection_server.simulation.objects.common import surface
 from projection_server.simulation.objects.registry import (FRACTION, NAME, NONNEGATIVE,
                                                            ObjectClass, POSITIVE, Property,
@@ -50,6 +53,10 @@ def build(physics: Physics, entity: Entity) -> None:
         fluid.body_ids.append(body)
         physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False, None,
                               group=entity.name))
+    if p['surface_tension'] > 0 or p['viscosity'] > 0:
+        physics.step_hooks.append(BatterForces(
+            physics, entity.name, radius, p['particle_mass'], p['surface_tension'],
+            p['viscosity']))
 
 
 def _block(centre: Any, count: int, radius: float) -> list[list[float]]:
@@ -100,7 +107,11 @@ PARTICLE_FLUID = register(ObjectClass(
                 Property('restitution', 0.0, FRACTION),
                 Property('rolling_friction', 0.0, NONNEGATIVE, 'm'),
                 Property('spinning_friction', 0.0, NONNEGATIVE, 'm'),
-                Property('damping', 5.0, NONNEGATIVE, '1/s', 'viscosity'),
+                Property('damping', 5.0, NONNEGATIVE, '1/s', 'drag against the world'),
+                Property('surface_tension', 0.0, NONNEGATIVE, 'N/m',
+                         'cohesion between touching particles'),
+                Property('viscosity', 0.0, NONNEGATIVE, '1/s',
+                         "rate at which neighbours' relative velocity relaxes"),
                 Property('container', None, NAME, '', 'the entity it fills')),
     fixed={'shape': 'sphere'},
     aliases={'count': ('particle_count', 1.0)},

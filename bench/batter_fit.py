@@ -1,0 +1,120 @@
+"""The batter's fit to the paper's Table II: pan counts of the 27 pours for candidate values of
+the mix's properties, in this process's workers (no node), against the paper's.
+
+    tools/with_env.sh python bench/batter_fit.py --set surface_tension=0.5,1,2
+    tools/with_env.sh python bench/batter_fit.py --set surface_tension=1 --set viscosity=20 \\
+        --angles 1.84
+
+Each ``--set NAME=V1,V2,..`` is a property of ``pancake_mix1`` and its candidate values; every
+combination of the candidates runs the pours of ``--angles`` (default: all three) at the
+paper's positions and times, at the pour's own physics, in ``--workers`` processes. Printed
+per combination: the pan counts beside the paper's, how many cells are within 2x of the
+paper's (a count of at most 2 particles counts as 2), the Spearman correlation of the pan
+counts with the paper's, and the CPU seconds of the pours.
+"""
+
+from __future__ import annotations
+
+import itertools
+from multiprocessing import get_context
+from pathlib import Path
+import tempfile
+import time
+
+import numpy as np
+
+import harness
+
+
+def within_2x(ours: float, theirs: float) -> bool:
+    """Within a factor of 2 of the paper's count, counts of at most 2 taken as 2."""
+    a, b = max(ours, 2.0), max(theirs, 2.0)
+    return b / 2 <= a <= 2 * b
+
+
+def spearman(a: list[float], b: list[float]) -> float:
+    def ranks(x):
+        x = np.asarray(x, dtype=float)
+        order = x.argsort(kind='stable')
+        r = np.empty(len(x))
+        r[order] = np.arange(len(x))
+        for v in np.unique(x):   # ties: their mean rank
+            r[x == v] = r[x == v].mean()
+        return r
+    return float(np.corrcoef(ranks(a), ranks(b))[0, 1])
+
+
+def mix(entities: list[dict]) -> dict:
+    """The entity ``pancake_mix1`` among ``entities`` and their parts."""
+    for entity in entities:
+        if entity['name'] == 'pancake_mix1':
+            return entity
+        found = mix(entity['parts'])
+        if found:
+            return found
+    return {}
+
+
+def _pour(args):
+    scenario, params, physics = args
+    from projection_server.settings import load_settings
+    from projection_server.simulation import Job
+    from projection_server.workers.run import run_projection
+
+    job = Job.checked(scenario, 'pour', params)
+    settings = load_settings().for_projection('pour', physics)
+    start = time.process_time()
+    with tempfile.TemporaryDirectory() as tmp:
+        timeline = run_projection(job, settings, Path(tmp) / 'bag')
+    cpu = time.process_time() - start
+    values = {name: value for name, args_, value in timeline['quantities']
+              if args_ in (['pancake_maker1'], ['pancake_mix1'])}
+    return values.get('particles_on', 0), values.get('particles_spilled', 0), cpu
+
+
+def main() -> int:
+    parser = harness.arguments(__doc__)
+    parser.add_argument('--set', action='append', default=[],
+                        help='NAME=V1,V2,...: candidate values of a property of the mix')
+    parser.add_argument('--angles', default='1.84,1.99,2.14')
+    parser.add_argument('--workers', type=int, default=2)
+    parser.add_argument('--physics', default='{}', help='settings over the pour\'s (JSON)')
+    args = parser.parse_args()
+    import json
+
+    from projection_server.reproduce import paper
+
+    physics = json.loads(args.physics)
+    angles = [float(a) for a in args.angles.split(',')]
+    names, candidates = [], []
+    for item in args.set:
+        name, values = item.split('=')
+        names.append(name)
+        candidates.append([float(v) for v in values.split(',')])
+    cells = [(p, t, a) for p in paper.POUR_POSITIONS for t in paper.POUR_TIMES
+             for a in angles]
+    print(f'batter fit: {len(cells)} pours per combination, angles {angles}, '
+          f'physics {physics or "of the pour"}; {harness.machine()}', flush=True)
+    with get_context('forkserver').Pool(args.workers) as pool:
+        for combination in itertools.product(*candidates):
+            scenario = harness.kb_scenario('pouring')
+            mix(scenario['entities'])['properties'].update(zip(names, combination))
+            start = time.monotonic()
+            results = pool.map(_pour, [(scenario, {'position': p, 'time': t, 'angle': a},
+                                        physics) for p, t, a in cells])
+            wall = time.monotonic() - start
+            ours = [r[0] for r in results]
+            theirs = [paper.TABLE_II[c]['pan'] for c in cells]
+            good = sum(within_2x(o, t) for o, t in zip(ours, theirs))
+            print(f'\n{dict(zip(names, combination)) or "the mix of the knowledge base"}: '
+                  f'{good}/{len(cells)} pan counts within 2x, Spearman '
+                  f'{spearman(ours, theirs):.3f}; CPU {sum(r[2] for r in results):.1f} s, '
+                  f'wall {wall:.1f} s', flush=True)
+            for (p, t, a), o, th, r in zip(cells, ours, theirs, results):
+                print(f'  {p:+.2f} m {t:.1f} s {a:.2f} rad: pan {o:4d} (paper {th:3d})'
+                      f'{"" if within_2x(o, th) else "  x"} spill {r[1]}', flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

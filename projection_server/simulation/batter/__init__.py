@@ -1,0 +1,14 @@
+"""What a batter does beyond rigid spheres: the physics between its particles.
+
+* :mod:`.neighbours`: the pairs of particles within a range, from one batched read of their
+  positions (a cell grid in numpy).
+* :mod:`.forces`: cohesion (a liquid bridge between neighbours: surface tension) and
+  viscosity (neighbours' relative velocity damped), one batched write of forces per step.
+
+A particle fluid's builder attaches them as step hooks when its properties ask for them.
+"""
+
+from projection_server.simulation.batter.forces import BatterForces
+from projection_server.simulation.batter.neighbours import NeighbourList, pairs
+
+__all__ = ['BatterForces', 'NeighbourList', 'pairs']

@@ -1,0 +1,84 @@
+"""Cohesion and viscosity between the particles of a batter: a step hook per fluid.
+
+A particle stands for a blob of batter, and two blobs that touch share a liquid bridge.
+
+* **Cohesion** (surface tension ``gamma`` [N/m]): the capillary force of a bridge between two
+  equal spheres of radius ``R`` that the liquid wets, ``F0 = 2 pi R* gamma`` with the
+  Derjaguin radius ``R* = R / 2``, i.e. ``F0 = pi R gamma`` (Israelachvili, *Intermolecular
+  and Surface Forces*, ch. 17). It is greatest at contact and falls linearly to zero at the
+  bridge's rupture gap :data:`RUPTURE_GAP` x ``R`` (Lian, Thornton and Adams 1993: rupture
+  at a gap of the order of the bridge volume's cube root). Only this attractive branch is
+  modelled; Bullet's contacts are the repulsion (as in the attractive lobe of Akinci et al.
+  2013's cohesion kernel).
+* **Viscosity** (``viscosity`` [1/s]): neighbours' relative velocity relaxes at that rate,
+  as in XSPH velocity smoothing. Each step a pair exchanges the momentum that moves the two
+  ``(1 - exp(-viscosity dt)) w / KISSING`` of the way towards each other's velocity, with
+  ``w`` the bridge's weight (1 at contact, 0 at rupture): a particle surrounded by
+  :data:`KISSING` touching neighbours relaxes towards their mean velocity at ``viscosity``.
+  Pairwise and antisymmetric, so it conserves momentum; exponential in ``dt``, so it is
+  stable and converges in the time step.
+
+Per step: one batched read of the particles' positions (and velocities, for viscosity;
+:meth:`Physics.particle_state`), numpy over the pairs within the rupture distance
+(a Verlet list, :class:`~.neighbours.NeighbourList`), one ``applyExternalForce`` per particle that has a neighbour.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from projection_server.simulation.batter.neighbours import NeighbourList
+
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Physics
+
+__all__ = ['BatterForces', 'KISSING', 'RUPTURE_GAP']
+
+RUPTURE_GAP = 0.5   # a bridge breaks at a gap of this many particle radii
+KISSING = 12        # touching neighbours of a particle in a dense packing
+
+
+class BatterForces:
+    """Cohesion and viscosity among the particles of fluid ``name`` of ``physics``
+    (``radius`` [m], ``mass`` [kg] each); call it after every physics step."""
+
+    def __init__(self, physics: Physics, name: str, radius: float, mass: float,
+                 surface_tension: float, viscosity: float):
+        self._physics = physics
+        self._name = name
+        self._ids = physics.fluids[name].body_ids
+        self._contact = 2 * radius
+        self._cutoff = (2 + RUPTURE_GAP) * radius
+        self._neighbours = NeighbourList(self._cutoff, skin=RUPTURE_GAP * radius)
+        self._bridge = math.pi * radius * surface_tension          # N at contact
+        dt = 1.0 / physics.settings.physics.rate_hz
+        # Momentum a pair exchanges per unit relative velocity and weight, as a force.
+        self._drag = mass * -math.expm1(-viscosity * dt) / KISSING / dt
+        self._apply = physics.client.applyExternalForce
+        self._frame = physics.client.WORLD_FRAME
+        self.pairs = 0   # pairs within the rupture distance at the last step
+
+    def __call__(self) -> None:
+        viscous = self._drag > 0
+        x, v = self._physics.particle_state(self._name, velocities=viscous)
+        i, j, d = self._neighbours(x)
+        self.pairs = len(i)
+        if not len(i):
+            return
+        distance = np.sqrt(np.einsum('ij,ij->i', d, d))
+        weight = np.clip((self._cutoff - distance) / (self._cutoff - self._contact), 0.0, 1.0)
+        force = np.zeros((len(x), 3))
+        if self._bridge > 0:
+            pull = (self._bridge * weight / np.maximum(distance, 1e-9))[:, None] * d
+            np.add.at(force, i, pull)
+            np.add.at(force, j, -pull)
+        if viscous:
+            drag = (self._drag * weight)[:, None] * (v[j] - v[i])
+            np.add.at(force, i, drag)
+            np.add.at(force, j, -drag)
+        apply, frame, ids = self._apply, self._frame, self._ids
+        for k in np.unique(np.concatenate((i, j))).tolist():
+            apply(ids[k], -1, force[k].tolist(), x[k].tolist(), frame)
