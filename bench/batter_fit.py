@@ -8,9 +8,10 @@ the mix's properties, in this process's workers (no node), against the paper's.
 Each ``--set NAME=V1,V2,..`` is a property of ``pancake_mix1`` and its candidate values; every
 combination of the candidates runs the pours of ``--angles`` (default: all three) at the
 paper's positions and times, at the pour's own physics, in ``--workers`` processes. Printed
-per combination: the pan counts beside the paper's, how many cells are within 2x of the
-paper's (a count of at most 2 particles counts as 2), the Spearman correlation of the pan
-counts with the paper's, and the CPU seconds of the pours.
+per combination: the pan counts beside the paper's, how many are within 2x of the paper's (a
+count of at most 2 particles counts as 2), the Spearman correlation of the pan counts with the
+paper's, how many of the table's cells (5 measures a pour) agree with the paper's by
+``make reproduce``'s tolerances, and the CPU seconds of the pours.
 """
 
 from __future__ import annotations
@@ -24,6 +25,11 @@ import time
 import numpy as np
 
 import harness
+
+
+# Table II's columns and the quantities that measure them.
+COLUMNS = {'pan': 'particles_on', 'spill': 'particles_spilled', 'off_x': 'centroid_offset_x',
+           'off_y': 'centroid_offset_y', 'round': 'roundness'}
 
 
 def within_2x(ours: float, theirs: float) -> bool:
@@ -69,7 +75,7 @@ def _pour(args):
     cpu = time.process_time() - start
     values = {name: value for name, args_, value in timeline['quantities']
               if args_ in (['pancake_maker1'], ['pancake_mix1'])}
-    return values.get('particles_on', 0), values.get('particles_spilled', 0), cpu
+    return {column: values.get(name) for column, name in COLUMNS.items()}, cpu
 
 
 def main() -> int:
@@ -83,6 +89,7 @@ def main() -> int:
     import json
 
     from projection_server.reproduce import paper
+    from projection_server.reproduce.experiments import _cell_agrees, TABLE_II_POURING
 
     physics = json.loads(args.physics)
     angles = [float(a) for a in args.angles.split(',')]
@@ -103,16 +110,18 @@ def main() -> int:
             results = pool.map(_pour, [(scenario, {'position': p, 'time': t, 'angle': a},
                                         physics) for p, t, a in cells])
             wall = time.monotonic() - start
-            ours = [r[0] for r in results]
+            ours = [r[0]['pan'] or 0 for r in results]
             theirs = [paper.TABLE_II[c]['pan'] for c in cells]
             good = sum(within_2x(o, t) for o, t in zip(ours, theirs))
+            agree = sum(_cell_agrees(m, paper.TABLE_II[c][m.column], r[0][m.column])
+                        for c, r in zip(cells, results) for m in TABLE_II_POURING.measures)
             print(f'\n{dict(zip(names, combination)) or "the mix of the knowledge base"}: '
                   f'{good}/{len(cells)} pan counts within 2x, Spearman '
-                  f'{spearman(ours, theirs):.3f}; CPU {sum(r[2] for r in results):.1f} s, '
-                  f'wall {wall:.1f} s', flush=True)
+                  f'{spearman(ours, theirs):.3f}, {agree}/{5 * len(cells)} cells agree; '
+                  f'CPU {sum(r[1] for r in results):.1f} s, wall {wall:.1f} s', flush=True)
             for (p, t, a), o, th, r in zip(cells, ours, theirs, results):
                 print(f'  {p:+.2f} m {t:.1f} s {a:.2f} rad: pan {o:4d} (paper {th:3d})'
-                      f'{"" if within_2x(o, th) else "  x"} spill {r[1]}', flush=True)
+                      f'{"" if within_2x(o, th) else "  x"} spill {r[0]["spill"]}', flush=True)
     return 0
 
 

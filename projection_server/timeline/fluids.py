@@ -99,5 +99,6 @@ class Fluids:
             round_ = pouring.roundness(xy)
             if round_ is not None:
                 rows.append(['roundness', [name], round_])
+                rows.append(['spread_area', [name], pouring.spread_area(xy)])
         rows += [['particles_in', [name], count] for name, count in sorted(inside.items())]
         return rows

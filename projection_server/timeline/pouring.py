@@ -27,6 +27,7 @@ __all__ = [
     'principal_axes',
     'reached_level',
     'roundness',
+    'spread_area',
 ]
 
 PILE_HEIGHT = 0.05   # m above a disc's top within which particles count as lying on it
@@ -96,6 +97,17 @@ def principal_axes(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] 
         return None
     eigenvalues, vectors = np.linalg.eigh(np.cov(xy, rowvar=False, bias=True))
     return xy.mean(axis=0), np.maximum(eigenvalues, 0.0), vectors
+
+
+def spread_area(xy: np.ndarray) -> float | None:
+    """The area [m^2] the points ``xy`` (n, 2) cover, from their covariance: ``4 pi
+    sqrt(det C)``, the area of a uniform disc or ellipse of the same second moments (a disc
+    of radius r has C = r^2 / 4 I); robust to a few strays, unlike a hull. None with fewer
+    than two points."""
+    axes = principal_axes(xy)
+    if axes is None:
+        return None
+    return float(4 * np.pi * np.sqrt(np.prod(axes[1])))
 
 
 def roundness(xy: np.ndarray) -> float | None:

@@ -81,7 +81,8 @@ fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
 ``particles_on_positions(M)``, the world positions ``[X, Y, Z]`` [m] of the particles on M
 (what ``object_model(pancake, _{particles: Points}, E)`` builds a pancake from), and of the
 particles on M ``centroid_offset_x(M)``, ``centroid_offset_y(M)`` [m] (world axes, relative to M's
-centre; left out without particles) and ``roundness(M)`` (left out below two particles).
+centre; left out without particles), ``roundness(M)`` and ``spread_area(M)`` [m^2] (the
+area of a uniform disc of the particles' second moments; both left out below two particles).
 The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
 """
 

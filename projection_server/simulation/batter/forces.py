@@ -11,12 +11,12 @@ A particle stands for a blob of batter, and two blobs that touch share a liquid 
   modelled; Bullet's contacts are the repulsion (as in the attractive lobe of Akinci et al.
   2013's cohesion kernel).
 * **Viscosity** (``viscosity`` [1/s]): neighbours' relative velocity relaxes at that rate,
-  as in XSPH velocity smoothing. Each step a pair exchanges the momentum that moves the two
-  ``(1 - exp(-viscosity dt)) w / KISSING`` of the way towards each other's velocity, with
-  ``w`` the bridge's weight (1 at contact, 0 at rupture): a particle surrounded by
-  :data:`KISSING` touching neighbours relaxes towards their mean velocity at ``viscosity``.
-  Pairwise and antisymmetric, so it conserves momentum; exponential in ``dt``, so it is
-  stable and converges in the time step.
+  as in XSPH velocity smoothing. Each step a pair exchanges the momentum that decays its
+  relative velocity by ``exp(-2 viscosity w dt / KISSING)``, with ``w`` the bridge's weight
+  (1 at contact, 0 at rupture): a particle surrounded by :data:`KISSING` touching
+  neighbours relaxes towards their mean velocity at about ``viscosity``. Pairwise and
+  antisymmetric, so it conserves momentum; exponential in ``dt``, so it converges in the
+  time step (and stays stable while ``viscosity dt`` is below about 1).
 
 Per step: one batched read of the particles' positions (and velocities, for viscosity;
 :meth:`Physics.particle_state`), numpy over the pairs within the rupture distance
@@ -54,15 +54,15 @@ class BatterForces:
         self._cutoff = (2 + RUPTURE_GAP) * radius
         self._neighbours = NeighbourList(self._cutoff, skin=RUPTURE_GAP * radius)
         self._bridge = math.pi * radius * surface_tension          # N at contact
-        dt = 1.0 / physics.settings.physics.rate_hz
-        # Momentum a pair exchanges per unit relative velocity and weight, as a force.
-        self._drag = mass * -math.expm1(-viscosity * dt) / KISSING / dt
+        self._dt = dt = 1.0 / physics.settings.physics.rate_hz
+        self._rate = 2 * viscosity * dt / KISSING   # a touching pair's decay exponent a step
+        self._momentum = mass / 2 / dt              # as a force: half the relative velocity
         self._apply = physics.client.applyExternalForce
         self._frame = physics.client.WORLD_FRAME
         self.pairs = 0   # pairs within the rupture distance at the last step
 
     def __call__(self) -> None:
-        viscous = self._drag > 0
+        viscous = self._rate > 0
         x, v = self._physics.particle_state(self._name, velocities=viscous)
         i, j, d = self._neighbours(x)
         self.pairs = len(i)
@@ -76,7 +76,7 @@ class BatterForces:
             np.add.at(force, i, pull)
             np.add.at(force, j, -pull)
         if viscous:
-            drag = (self._drag * weight)[:, None] * (v[j] - v[i])
+            drag = (self._momentum * -np.expm1(-self._rate * weight))[:, None] * (v[j] - v[i])
             np.add.at(force, i, drag)
             np.add.at(force, j, -drag)
         apply, frame, ids = self._apply, self._frame, self._ids

@@ -1,0 +1,62 @@
+"""The batter's cohesion and viscosity act, through the live node: counterfactuals move the
+pour's outcome the way physics says, and bad values are errors naming the property."""
+
+from __future__ import annotations
+
+import json
+
+from projection_interfaces.srv import PrologQuery
+import pytest
+
+Q = PrologQuery.Request
+SIM_TIMEOUT = 600.0
+
+
+def ask(call, text):
+    r = call(PrologQuery, 'query', Q(mode=Q.ONCE, query=text, timeout=SIM_TIMEOUT),
+             timeout=SIM_TIMEOUT * 2)
+    return r, [json.loads(s) for s in r.solutions]
+
+
+def pour(call, prop, factors, angle, time, quantity):
+    """``quantity`` on the pancake maker after a pour at ``angle`` held ``time`` s, for the
+    knowledge base's ``prop`` of the mix times each of ``factors``."""
+    r, sols = ask(call, f'''
+        kb_entity_properties(pancake_mix1, P), get_dict({prop}, P, Base),
+        findall(V, (member(F, {list(factors)}), Value is F * Base,
+                    copy_scenario(pouring, S),
+                    scenario_set_property(S, pancake_mix1, {prop}, Value),
+                    make_projection(S, pour, [(_, angle, [{angle}]), (_, time, [{time}]),
+                                              (_, position, [0.0])], 600, TL),
+                    quantity({quantity}(pancake_maker1), V, TL)), Vs)''')
+    assert r.ok, r.message
+    return sols[0]['Vs'], sols[0]['Base']
+
+
+def test_the_knowledge_bases_mix_has_surface_tension_and_viscosity(call):
+    r, sols = ask(call, 'kb_entity_properties(pancake_mix1, P), '
+                        'get_dict(surface_tension, P, G), get_dict(viscosity, P, V), '
+                        'kb_property_unit(surface_tension, U)')
+    assert r.ok, r.message
+    assert sols[0]['G'] > 0 and sols[0]['V'] > 0
+
+
+def test_more_surface_tension_puts_fewer_particles_on_the_pan_at_the_smallest_angle(call):
+    (none, base, more), gamma = pour(call, 'surface_tension', (0, 1, 3), 1.84, 0.5,
+                                     'particles_on')
+    assert none > base > more, (gamma, none, base, more)
+
+
+def test_a_thinner_batter_spreads_wider(call):
+    (thin, base), nu = pour(call, 'viscosity', (0, 1), 2.14, 0.5, 'spread_area')
+    assert thin > base, (nu, thin, base)
+
+
+@pytest.mark.parametrize('prop', ['surface_tension', 'viscosity'])
+def test_a_negative_value_is_a_domain_error_naming_the_property(call, prop):
+    r, _ = ask(call, f'copy_scenario(pouring, S), '
+                     f'scenario_set_property(S, pancake_mix1, {prop}, -1.0)')
+    assert not r.ok and r.error_kind == 'domain_error', (r.error_kind, r.message)
+    assert prop in r.message + r.error
+    r, _ = ask(call, 'X = 1')
+    assert r.ok   # the node serves on
