@@ -44,6 +44,15 @@ def test_centroid_offset_is_relative_and_undefined_without_particles():
     assert pouring.centroid_offset(np.zeros((0, 2)), (0.0, 0.0)) is None
 
 
+def test_spread_area_is_a_discs_area_for_points_spread_uniformly_over_it():
+    rng = np.random.default_rng(0)
+    r, angle = 0.05 * np.sqrt(rng.random(20000)), 2 * math.pi * rng.random(20000)
+    xy = np.c_[r * np.cos(angle), r * np.sin(angle)]
+    assert pouring.spread_area(xy) == pytest.approx(math.pi * 0.05 ** 2, rel=0.02)
+    assert pouring.spread_area(2 * xy) == pytest.approx(4 * pouring.spread_area(xy))
+    assert pouring.spread_area(xy[:1]) is None
+
+
 def test_roundness_is_one_for_a_circle_zero_for_a_line_undefined_below_two():
     angles = np.linspace(0, 2 * math.pi, 36, endpoint=False)
     assert pouring.roundness(np.c_[np.cos(angles), np.sin(angles)]) == pytest.approx(1.0)
