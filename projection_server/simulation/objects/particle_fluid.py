@@ -74,15 +74,14 @@ def build(physics: Physics, entity: Entity) -> None:
 
 
 def _heat(physics: Physics, entity: Entity, radius: float) -> None:
-    """Attach the fluid's heat (:class:`BatterHeat`) when a pancake maker heats it or it
-    brings a thermal state of its own (temperatures, bonds)."""
+    """Attach the fluid's heat (:class:`BatterHeat`) when the scenario has a pancake maker
+    (heated or switched off) or the fluid brings a thermal state (temperatures, bonds)."""
     p = entity.properties
-    sources = [HeatSource(*role[1:], maker.properties['temperature'])
-               for maker in physics.scenario.entities if maker.unit.fluid_role is not None
-               and 'heating' in maker.properties and maker.properties['heating'] > 0
-               and (role := maker.unit.fluid_role(maker))[0] == 'surface'
-               ] if physics.scenario is not None else []
-    if not sources and p.get('temperatures') is None and p.get('bonds') is None:
+    makers = [maker for maker in (physics.scenario.entities if physics.scenario else ())
+              if 'heating' in maker.properties and maker.unit.fluid_role is not None]
+    sources = [HeatSource(*maker.unit.fluid_role(maker)[1:], maker.properties['temperature'])
+               for maker in makers if maker.properties['heating'] > 0]
+    if not makers and p.get('temperatures') is None and p.get('bonds') is None:
         return
     count = int(p['particle_count'])
     temperatures = (np.asarray(p['temperatures'], dtype=float) if p.get('temperatures')
