@@ -57,14 +57,37 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from projection_server.simulation.physics import Physics
+    from projection_server.simulation.scenario import Scenario
 
 __all__ = ['AIR_TEMPERATURE', 'BREAK_GAP', 'BatterHeat', 'HeatSource', 'KISSING',
-           'TOUCH_TOLERANCE', 'ThermalState']
+           'TOUCH_TOLERANCE', 'ThermalState', 'unreachable_setting']
 
 TOUCH_TOLERANCE = 0.05   # touching: a gap of up to this many particle radii
 BREAK_GAP = 0.5          # a bond breaks at a gap of this many particle radii
 KISSING = 12             # touching neighbours of a particle in a dense packing
 AIR_TEMPERATURE = 20.0   # deg C of the kitchen's air
+
+
+def unreachable_setting(scenario: Scenario) -> list[str]:
+    """Why nothing of a batter of ``scenario`` will set, for each batter that none of
+    its pancake makers can heat to its setting temperature (none: [])."""
+    pans = [e for e in scenario.entities if 'heating' in e.properties]
+    if not pans:
+        return []
+    hottest = max(max(e.properties['temperature'] for e in pans if e.properties['heating'])
+                  if any(e.properties['heating'] for e in pans) else AIR_TEMPERATURE,
+                  AIR_TEMPERATURE)
+    out = []
+    for fluid in scenario.entities:
+        p = fluid.properties
+        if 'setting_temperature' not in p:
+            continue
+        warmest = max([hottest, p['temperature'], *(p.get('temperatures') or ())])
+        if p['setting_temperature'] > warmest:
+            out.append(f'{fluid.name}: its setting_temperature, {p["setting_temperature"]} '
+                       f'deg C, is above the {warmest} deg C that its pancake makers and '
+                       'its own temperature reach: nothing of it will set')
+    return out
 
 
 class HeatSource(NamedTuple):
