@@ -387,21 +387,21 @@ COOK_TIME = 6.0   # s: the batter is set through (set_fraction 1) after about 5 
 COOKED_SETUP = (
     'make_projection(pouring, pour, [(_, angle, [2.14]), (_, time, [0.5]), '
     '(_, position, [0.0])], 600.0, PourTL),\n'
-    'quantity(particle_positions(pancake_mix1), P0, PourTL),\n'
-    'quantity(particle_temperatures(pancake_mix1), T0, PourTL),\n'
-    'quantity(bonds(pancake_mix1), B0, PourTL),\n'
+    'quantity(particle_positions(pancake_mix1), Poured, PourTL),\n'
+    'quantity(particle_temperatures(pancake_mix1), PouredT, PourTL),\n'
+    'quantity(bonds(pancake_mix1), PouredBonds, PourTL),\n'
     'create_scenario(C),\n'
     'add_to_scenario(C, [kitchen_env, pancake_maker1, object(pancake_mix,\n'
-    '    _{name: batter1, positions: P0, temperatures: T0, bonds: B0})]),\n'
+    '    _{name: batter1, positions: Poured, temperatures: PouredT, bonds: PouredBonds})]),\n'
     f'make_projection(C, wait, [(_, duration, [{COOK_TIME!r}])],\n'
     '                [timeout(600.0), physics(_{solver_iterations: 20})], CookTL),\n'
-    'quantity(particle_positions(batter1), P1, CookTL),\n'
-    'quantity(particle_temperatures(batter1), T1, CookTL),\n'
-    'quantity(bonds(batter1), B1, CookTL),\n'
+    'quantity(particle_positions(batter1), Cooked, CookTL),\n'
+    'quantity(particle_temperatures(batter1), CookedT, CookTL),\n'
+    'quantity(bonds(batter1), CookedBonds, CookTL),\n'
     'quantity(set_fraction(batter1), SetFraction, CookTL),\n'
     'create_scenario(S),\n'
     'add_to_scenario(S, [kitchen_env, pr2_robot, pancake_maker1, spatula1, object(pancake_mix,\n'
-    '    _{name: batter1, positions: P1, temperatures: T1, bonds: B1})])')
+    '    _{name: batter1, positions: Cooked, temperatures: CookedT, bonds: CookedBonds})])')
 TABLE_III_COOKED = Experiment(
     key='table3_cooked',
     title=f'TABLE III with the pancake cooked from the poured batter ({COOK_TIME:g} s)',
