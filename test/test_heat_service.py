@@ -109,3 +109,17 @@ def test_a_setting_temperature_no_pan_reaches_is_a_warning_on_rosout(server, nod
 
 def _warnings(records):
     return [m for m in records if 'batter1' in m.msg and 'nothing of it will set' in m.msg]
+
+
+def test_the_pancake_cooked_from_the_poured_batter_turns_where_the_papers_did(call):
+    """Table III's outer angles, with the pancake that emerges from Table II's pour cooked
+    for reproduce's COOK_TIME: turned at 0.1 rad, not at 0.9 (the paper's)."""
+    from projection_server.reproduce.experiments import COOKED_SETUP
+
+    r, sols = ask(call, COOKED_SETUP + ', make_projection(S, turn_pancake, '
+                  '[(A, angle, [0.1, 0.9])], 600.0, TL), '
+                  '( holds(upside_down(batter1), _, TL) -> O = ok ; O = fail )',
+                  mode=Q.ALL_SOLUTIONS)
+    assert r.ok, r.message
+    assert sols[0]['SetFraction'] >= 0.5
+    assert [(s['A'], s['O']) for s in sols] == [(0.1, 'ok'), (0.9, 'fail')]

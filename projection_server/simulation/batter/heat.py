@@ -23,7 +23,8 @@ or a convex mean, so the integration is stable for any step and converges as ``d
 
 **Setting.** A particle whose temperature has reached ``setting_temperature`` is set, and
 stays set (egg and starch set irreversibly at 60-70 deg C; iGibson 2.0 calls an object
-cooked at 70 deg C). Two set particles that touch bond once: a ``JOINT_POINT2POINT``
+cooked at 70 deg C). A set particle takes the friction of a cooked crust, ``set_friction``
+(if given): wet batter slides where a crust grips. Two set particles that touch bond once: a ``JOINT_POINT2POINT``
 constraint between the two bodies, its pivot where they touch (the midpoint of their
 centres, fixed in each body's frame), whose force is limited to ``bond_strength`` [N]. A
 point-to-point bond holds the two centres together but lets each sphere turn (three
@@ -121,7 +122,7 @@ class BatterHeat:
                  sources: Sequence[HeatSource], temperatures: np.ndarray,
                  setting_temperature: float, pan_heat_rate: float, conduction_rate: float,
                  air_cooling_rate: float, bond_strength: float,
-                 bonds: Sequence[Sequence[int]] = ()):
+                 bonds: Sequence[Sequence[int]] = (), set_friction: float | None = None):
         self._physics = physics
         self.name = name
         self._ids = physics.fluids[name].body_ids
@@ -131,6 +132,7 @@ class BatterHeat:
         self.temperature = np.array(temperatures, dtype=float).reshape(n)
         self._setting = setting_temperature
         self.set = self.temperature >= setting_temperature
+        self._set_friction = set_friction
         dt = 1.0 / physics.settings.physics.rate_hz
         self._pan = -math.expm1(-pan_heat_rate * dt)
         self._air = -math.expm1(-air_cooling_rate * dt)
@@ -149,7 +151,9 @@ class BatterHeat:
         self.formed = self.broken = 0
         if len(bonds):
             pairs = np.sort(np.asarray(bonds, dtype=np.int64).reshape(-1, 2), axis=1)
+            self.set[pairs.ravel()] = True   # only set particles bond
             self._bond(pairs[:, 0], pairs[:, 1], physics.particle_positions(name))
+        self._crust(np.flatnonzero(self.set))
 
     def __call__(self) -> None:
         x = self._physics.particle_state(self.name)[0]
@@ -168,7 +172,10 @@ class BatterHeat:
             t += change
         if self._air > 0:
             t += (AIR_TEMPERATURE - t) * self._air
-        self.set |= t >= self._setting
+        setting = (t >= self._setting) & ~self.set
+        if setting.any():
+            self.set |= setting
+            self._crust(np.flatnonzero(setting))
         if len(self._bi):
             self._break_stretched(x)
         if len(i) and self._strength > 0 and self.set.any():
@@ -183,6 +190,14 @@ class BatterHeat:
         """The fluid's temperatures, set flags and bonds in force, now."""
         return ThermalState(self.name, self.temperature.copy(), self.set.copy(),
                             np.stack([self._bi, self._bj], axis=1))
+
+    def _crust(self, particles: np.ndarray) -> None:
+        """Give the particles that have just set the friction of a cooked crust."""
+        if self._set_friction is None:
+            return
+        change, ids = self._physics.client.changeDynamics, self._ids
+        for k in particles.tolist():
+            change(ids[k], -1, lateralFriction=self._set_friction)
 
     # --- bonds ------------------------------------------------------------------------
     def _bond(self, i: np.ndarray, j: np.ndarray, x: np.ndarray) -> None:

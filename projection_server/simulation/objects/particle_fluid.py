@@ -11,8 +11,8 @@ Heat (:mod:`projection_server.simulation.batter.heat`): each particle starts at 
 fluid's ``temperature`` (or its own, ``temperatures``), warms on a heated pancake maker at
 ``pan_heat_rate`` and exchanges heat with the particles it touches at
 ``conduction_rate`` (and with the air at ``air_cooling_rate``); from
-``setting_temperature`` on it is set, and touching set particles bond with
-``bond_strength``. ``bonds`` (index pairs) are bonds made when the world is built."""
+``setting_temperature`` on it is set (and takes ``set_friction``, a cooked crust's, if
+given), and touching set particles bond with ``bond_strength``. ``bonds`` (index pairs) are bonds made when the world is built."""
 
 from __future__ import annotations
 
@@ -89,7 +89,7 @@ def _heat(physics: Physics, entity: Entity, radius: float) -> None:
     physics.step_hooks.append(BatterHeat(
         physics, entity.name, radius, sources, temperatures, p['setting_temperature'],
         p['pan_heat_rate'], p['conduction_rate'], p['air_cooling_rate'],
-        p['bond_strength'], p.get('bonds') or ()))
+        p['bond_strength'], p.get('bonds') or (), p.get('set_friction')))
 
 
 def _check(name: str, p: dict[str, Any]) -> None:
@@ -182,6 +182,8 @@ PARTICLE_FLUID = register(ObjectClass(
                          'rate towards the air temperature (20 deg C)'),
                 Property('bond_strength', 0.0, NONNEGATIVE, 'N',
                          'largest force a bond between set particles holds'),
+                Property('set_friction', None, NONNEGATIVE, '',
+                         "a set particle's friction (a cooked crust's); absent: friction"),
                 Property('positions', None, POINTS, 'm', 'where the particles start'),
                 Property('temperatures', None, NUMBERS, 'degC', "each particle's"),
                 Property('bonds', None, PAIRS, '', 'particle index pairs bonded at start')),
