@@ -379,25 +379,25 @@ TABLE_III_POURED_PANCAKE = Experiment(
 )
 
 # Table III with the pancake that emerges from the poured batter on the hot pan (issue 28):
-# the batter one pour of Table II left (every particle: its position, temperature and
-# bonds) cooks for COOK_TIME seconds on pancake_maker1 (195 degC) in a projection of its
+# the batter one pour of Table II left on the pan (each of its particles: its position,
+# temperature and bonds; not what stayed in the cup) cooks for COOK_TIME seconds on pancake_maker1 (195 degC) in a projection of its
 # own (wait, at the pour's 20 solver iterations: a batter at rest), and what it became is
 # handed on to the turning scenario's kitchen, pan and spatula. Cook once, turn six times.
 COOK_TIME = 6.0   # s: the batter is set through (set_fraction 1) after about 5 s
 COOKED_SETUP = (
     'make_projection(pouring, pour, [(_, angle, [2.14]), (_, time, [0.5]), '
     '(_, position, [0.0])], 600.0, PourTL),\n'
-    'quantity(particle_positions(pancake_mix1), Poured, PourTL),\n'
-    'quantity(particle_temperatures(pancake_mix1), PouredT, PourTL),\n'
-    'quantity(bonds(pancake_mix1), PouredBonds, PourTL),\n'
+    'quantity(particles_on_positions(pancake_maker1), Poured, PourTL),\n'
+    'quantity(particles_on_temperatures(pancake_maker1), PouredT, PourTL),\n'
+    'quantity(particles_on_bonds(pancake_maker1), PouredBonds, PourTL),\n'
     'create_scenario(C),\n'
     'add_to_scenario(C, [kitchen_env, pancake_maker1, object(pancake_mix,\n'
     '    _{name: batter1, positions: Poured, temperatures: PouredT, bonds: PouredBonds})]),\n'
     f'make_projection(C, wait, [(_, duration, [{COOK_TIME!r}])],\n'
     '                [timeout(600.0), physics(_{solver_iterations: 20})], CookTL),\n'
-    'quantity(particle_positions(batter1), Cooked, CookTL),\n'
-    'quantity(particle_temperatures(batter1), CookedT, CookTL),\n'
-    'quantity(bonds(batter1), CookedBonds, CookTL),\n'
+    'quantity(particles_on_positions(pancake_maker1), Cooked, CookTL),\n'
+    'quantity(particles_on_temperatures(pancake_maker1), CookedT, CookTL),\n'
+    'quantity(particles_on_bonds(pancake_maker1), CookedBonds, CookTL),\n'
     'quantity(set_fraction(batter1), SetFraction, CookTL),\n'
     'create_scenario(S),\n'
     'add_to_scenario(S, [kitchen_env, pr2_robot, pancake_maker1, spatula1, object(pancake_mix,\n'

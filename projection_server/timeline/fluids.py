@@ -119,6 +119,25 @@ class Fluids:
                     break
         return events
 
+    @staticmethod
+    def _batter_on(maker: str, masks: list[tuple[str, np.ndarray]], last: Sample
+                   ) -> list[list[Any]]:
+        """The temperatures and bonds of the batter on ``maker`` (the particles of each
+        fluid in ``masks``), in the order of ``particles_on_positions``: the batter a next
+        projection starts from. None unless every fluid on it has its heat logged."""
+        if not masks or any(fluid not in last.batter for fluid, _ in masks):
+            return []
+        temperatures, bonds, offset = [], [], 0
+        for fluid, mask in masks:
+            index = np.full(len(mask), -1)
+            index[mask] = offset + np.arange(int(mask.sum()))
+            temperatures += [float(v) for v in last.batter[fluid][0][mask]]
+            pairs = index[last.bonds.get(fluid, np.zeros((0, 2), dtype=np.int64))]
+            bonds += [[int(i), int(j)] for i, j in pairs if i >= 0 and j >= 0]
+            offset += int(mask.sum())
+        return [['particles_on_temperatures', [maker], temperatures],
+                ['particles_on_bonds', [maker], bonds]]
+
     def quantities(self) -> list[list[Any]]:
         """The quantities ``[name, args, value]`` of the fluids at the last sample."""
         if not self.samples:
@@ -126,6 +145,7 @@ class Fluids:
         last = self.samples[-1]
         vessels = self._vessels(last)
         on = {name: [] for name in self.makers}
+        masks: dict[str, list[tuple[str, np.ndarray]]] = {name: [] for name in self.makers}
         inside = {name: 0 for name in vessels}
         rows: list[list[Any]] = []
         for fluid, radius in self.radius.items():
@@ -140,6 +160,7 @@ class Fluids:
             for name, disc in self.makers.items():
                 mask = pouring.on_disc(positions, disc, radius) & ~placed
                 on[name].append(positions[mask])
+                masks[name].append((fluid, mask))
                 placed |= mask
             rows.append(['particles_spilled', [fluid], int((~placed).sum())])
         for name, disc in self.makers.items():
@@ -155,6 +176,7 @@ class Fluids:
             round_ = pouring.roundness(xy)
             if round_ is not None:
                 rows.append(['roundness', [name], round_])
+            rows += self._batter_on(name, masks[name], last)
         rows += [['particles_in', [name], count] for name, count in sorted(inside.items())]
         for fluid in self._batters():
             sample = self._batter_samples(fluid)[-1]

@@ -100,7 +100,11 @@ last sample): ``temperature(F)`` [deg C], the mean of its particles'; ``set_frac
 the fraction of them that is set; and its state, what a next projection starts from (the
 fluid's ``positions``, ``temperatures`` and ``bonds``): ``particle_positions(F)`` (world
 ``[X, Y, Z]`` [m] of each particle), ``particle_temperatures(F)`` [deg C] and ``bonds(F)``,
-the bonds in force as ``[I, J]`` particle index pairs.
+the bonds in force as ``[I, J]`` particle index pairs. Of the batter on a pancake maker M
+(particles of fluids whose heat is logged), in the order of ``particles_on_positions(M)``:
+``particles_on_temperatures(M)`` [deg C] and ``particles_on_bonds(M)`` (the bonds between
+them, as index pairs into that list): what lies on the pan, handed on without what stayed
+in the cup.
 """
 
 from __future__ import annotations

@@ -24,15 +24,15 @@ or a convex mean, so the integration is stable for any step and converges as ``d
 **Setting.** A particle whose temperature has reached ``setting_temperature`` is set, and
 stays set (egg and starch set irreversibly at 60-70 deg C; iGibson 2.0 calls an object
 cooked at 70 deg C). A set particle takes the friction of a cooked crust, ``set_friction``
-(if given): wet batter slides where a crust grips. Two set particles that touch bond once: a ``JOINT_POINT2POINT``
-constraint between the two bodies, its pivot where they touch (the midpoint of their
-centres, fixed in each body's frame), whose force is limited to ``bond_strength`` [N]. A
-point-to-point bond holds the two centres together but lets each sphere turn (three
-constraint rows, not a fixed joint's six); a triangulated net of them is stiff in its plane
-and bends out of it, like a pancake. A bond pulled harder than its strength yields, and the
-pair drifts apart; the bond breaks (its constraint is removed) when the gap between the two
-spheres exceeds :data:`BREAK_GAP` ``R``: so a bond breaks past a force. A pair bonds at most
-once (a broken bond does not re-form).
+(if given): wet batter slides where a crust grips. Two set particles that touch bond once:
+a ``JOINT_POINT2POINT`` constraint between the two bodies, its pivot where they touch (the
+midpoint of their centres, fixed in each body's frame), whose force is limited to
+``bond_strength`` [N]. A point-to-point bond holds the two centres together but lets each
+sphere turn (three constraint rows, not a fixed joint's six); a triangulated net of them is
+stiff in its plane and bends out of it, like a pancake. A bond pulled harder than its
+strength yields, and the pair drifts apart; the bond breaks (its constraint is removed)
+when the gap between the two spheres exceeds :data:`BREAK_GAP` ``R``: so a bond breaks
+past a force. A pair bonds at most once (a broken bond does not re-form).
 
 The state (temperatures, set flags and the bonds in force) is reported by
 :meth:`BatterHeat.thermal_state` and logged every monitoring sample

@@ -12,7 +12,8 @@ fluid's ``temperature`` (or its own, ``temperatures``), warms on a heated pancak
 ``pan_heat_rate`` and exchanges heat with the particles it touches at
 ``conduction_rate`` (and with the air at ``air_cooling_rate``); from
 ``setting_temperature`` on it is set (and takes ``set_friction``, a cooked crust's, if
-given), and touching set particles bond with ``bond_strength``. ``bonds`` (index pairs) are bonds made when the world is built."""
+given), and touching set particles bond with ``bond_strength``. ``bonds`` (index pairs) are
+bonds made when the world is built."""
 
 from __future__ import annotations
 
