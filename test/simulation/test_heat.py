@@ -61,6 +61,10 @@ def test_batter_on_a_hot_pan_sets_bonds_and_its_bag_gives_the_same_timeline(tmp_
     assert ['set', ['batter1']] in [e[:2] for e in timeline['events']]
     assert ['set', ['batter1']] in [f[:2] for f in timeline['fluents']]
     assert 'upside_down' not in [f[0] for f in timeline['fluents']]
+    # The batter on the pan, in the order of its positions: here all of it.
+    assert q[('particles_on_temperatures', ('pancake_maker1',))] == q[
+        ('particle_temperatures', ('batter1',))]
+    assert q[('particles_on_bonds', ('pancake_maker1',))] == q[('bonds', ('batter1',))]
     assert translate_bag(tmp_path / 'cook') == timeline
 
 
@@ -104,3 +108,14 @@ def test_the_temperature_follows_newtons_law_exactly_over_a_step():
             assert heat.temperature[0] == pytest.approx(195 - 175 * np.exp(-0.5), abs=1e-6)
     finally:
         client.disconnect()
+
+
+def test_the_emerged_pancake_is_the_largest_bonded_cluster_and_its_turn_is_kabschs():
+    from projection_server.timeline import cooking
+
+    assert cooking.largest_cluster(np.array([[0, 1], [1, 2], [3, 4]]), 6).tolist() == [0, 1, 2]
+    assert cooking.largest_cluster(np.zeros((0, 2)), 4).tolist() == []
+    flat = np.array([[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0], [0.01, 0.01, 0.002]])
+    turned = flat @ np.diag([1.0, -1.0, -1.0]).T + [0.05, 0.0, 0.1]   # half a turn about x
+    assert cooking.upside_down(cooking.rotation(flat, turned))
+    assert not cooking.upside_down(cooking.rotation(flat, flat + 0.3))
