@@ -66,6 +66,18 @@ def test_batter_on_a_hot_pan_sets_bonds_and_its_bag_gives_the_same_timeline(tmp_
         ('particle_temperatures', ('batter1',))]
     assert q[('particles_on_bonds', ('pancake_maker1',))] == q[('bonds', ('batter1',))]
     assert translate_bag(tmp_path / 'cook') == timeline
+    from rosbags.highlevel import AnyReader
+
+    from projection_server.bags import typestore
+    store, topics = typestore(), {}
+    with AnyReader([tmp_path / 'cook'], default_typestore=store) as reader:
+        for connection, _, raw in reader.messages():
+            if connection.topic in ('/projection/batter', '/projection/bonds'):
+                message = reader.deserialize(raw, connection.msgtype)
+                assert bytes(raw) == bytes(store.serialize_cdr(message, connection.msgtype))
+                topics[connection.topic] = topics.get(connection.topic, 0) + 1
+    assert topics['/projection/batter'] == timeline['meta']['samples']
+    assert 1 < topics['/projection/bonds'] < topics['/projection/batter']   # on change
 
 
 def test_a_pan_switched_off_sets_nothing(tmp_path):
