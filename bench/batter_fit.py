@@ -50,17 +50,6 @@ def spearman(a: list[float], b: list[float]) -> float:
     return float(np.corrcoef(ranks(a), ranks(b))[0, 1])
 
 
-def mix(entities: list[dict]) -> dict:
-    """The entity ``pancake_mix1`` among ``entities`` and their parts."""
-    for entity in entities:
-        if entity['name'] == 'pancake_mix1':
-            return entity
-        found = mix(entity['parts'])
-        if found:
-            return found
-    return {}
-
-
 def _pour(args):
     scenario, params, physics = args
     from projection_server.settings import load_settings
@@ -105,7 +94,8 @@ def main() -> int:
     with get_context('forkserver').Pool(args.workers) as pool:
         for combination in itertools.product(*candidates):
             scenario = harness.kb_scenario('pouring')
-            mix(scenario['entities'])['properties'].update(zip(names, combination))
+            harness.find_entity(scenario['entities'], 'pancake_mix1')['properties'].update(
+                zip(names, combination))
             start = time.monotonic()
             results = pool.map(_pour, [(scenario, {'position': p, 'time': t, 'angle': a},
                                         physics) for p, t, a in cells])

@@ -121,6 +121,17 @@ def kb_scenario(name: str) -> dict[str, Any]:
     return copy.deepcopy(_scenario(name))
 
 
+def find_entity(entities: list[dict[str, Any]], name: str) -> dict[str, Any]:
+    """The entity ``name`` among a scenario description's ``entities`` and their parts."""
+    for entity in entities:
+        if entity['name'] == name:
+            return entity
+        found = find_entity(entity.get('parts', []), name)
+        if found:
+            return found
+    return {}
+
+
 @functools.cache
 def _scenario(name: str) -> dict[str, Any]:
     return prolog().query_once('scenario:scenario_description(S, D)', {'S': name})['D']

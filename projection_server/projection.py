@@ -31,6 +31,7 @@ from projection_server import beliefs
 from projection_server.simulation import programs as _programs
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import Job
+from projection_server.simulation.scenario import parse_scenario
 from projection_server.workers import create_backend, Retention
 
 if TYPE_CHECKING:
@@ -152,8 +153,9 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
     :func:`timeline` (with the world's draws as its quantities ``sampled(Entity,
     Property)``)."""
     concrete, drawn = _world(scenario, world)
-    future = _get_backend().submit(Job.checked(concrete, program, params, physics, plan),
-                                   timeout, owner)
+    job = Job.checked(concrete, program, params, physics, plan)
+    _warn_of(job)
+    future = _get_backend().submit(job, timeout, owner)
     cached = future.done()   # its bag was made before, or prefetched and is done
     started = time.monotonic()
     _log.debug('projection %s %s started', program, params)
@@ -175,6 +177,15 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
             while len(_drawn) > _KEEP_DRAWN:
                 _drawn.popitem(last=False)
     return result.bag
+
+
+def _warn_of(job: Job) -> None:
+    """Log a warning (on /rosout, through the node) of what in ``job``'s scenario cannot
+    act as asked: a batter that will not set."""
+    from projection_server.simulation.batter.heat import unreachable_setting
+
+    for text in unreachable_setting(parse_scenario(job.scenario)):
+        _log.warning('projection %s: %s', job.program, text)
 
 
 def timeline(bag: str | os.PathLike[str]) -> dict[str, Any]:

@@ -596,7 +596,9 @@ property_unit(Key, Unit) :-
 %          property, or one that does not apply to Class.
 %   @error type_error(Type, Value0) if Value0 has the wrong type.
 %   @error domain_error(not_less_than_zero, Value0) for a negative
-%          quantity.
+%          quantity (the context's message names Key).
+%   @error domain_error(not_below_absolute_zero(Key), Value0) for a
+%          temperature below -273.15 degrees Celsius.
 %   @error domain_error(list_of_length(3), Value0) for a vector of
 %          another length; domain_error(non_empty_list, []) for an empty
 %          list of names.
@@ -653,7 +655,9 @@ applies_to(P, ClassIRI) :-
 %!  kb_property_kind(+Key, -Kind) is semidet.
 %
 %   Kind is what the values of the physical property Key are: `quantity`
-%   (a non-negative float, rdfs:range xsd:double), `count` (a non-negative
+%   (a non-negative float, rdfs:range xsd:double), `temperature` (a float
+%   in degrees Celsius not below absolute zero, -273.15, kitchen:Temperature),
+%   `count` (a non-negative
 %   integer, xsd:nonNegativeInteger), `text` (xsd:string), `vector` (three
 %   floats, kitchen:Vector), `numbers` (floats, kitchen:NumberList),
 %   `names` (strings, kitchen:NameList), `file` (a model file's path,
@@ -680,6 +684,7 @@ range_kind(Range, Kind) :-
 range_kind(_, text).
 
 range_kind_(xsd:double, quantity).
+range_kind_(kitchen:'Temperature', temperature).
 range_kind_(xsd:nonNegativeInteger, count).
 range_kind_(kitchen:'Vector', vector).
 range_kind_(kitchen:'NumberList', numbers).
@@ -691,10 +696,22 @@ check_value(quantity, _Key, V0, V) :-
     belief_term(V0),
     !,
     belief(V0, V).
-check_value(quantity, _Key, V0, V) :-
+check_value(quantity, Key, V0, V) :-
     !,
     must_be(number, V0),
-    (   V0 >= 0 -> V is float(V0) ; domain_error(not_less_than_zero, V0) ).
+    (   V0 >= 0
+    ->  V is float(V0)
+    ;   format(atom(Msg), '~w must not be negative', [Key]),
+        throw(error(domain_error(not_less_than_zero, V0), context(_, Msg)))
+    ).
+check_value(temperature, Key, V0, V) :-
+    !,
+    must_be(number, V0),
+    (   V0 >= -273.15
+    ->  V is float(V0)
+    ;   format(atom(Msg), '~w is a temperature in degrees Celsius', [Key]),
+        throw(error(domain_error(not_below_absolute_zero(Key), V0), context(_, Msg)))
+    ).
 check_value(count, _Key, V0, V) :-
     !,
     must_be(integer, V0),
@@ -779,6 +796,10 @@ pose_vector(Pose, Key, V) :-
 to_float(X0, X) :- X is float(X0).
 
 :- multifile prolog:message//1.
+
+prolog:message(error(domain_error(not_below_absolute_zero(Key), Value), _)) -->
+    [ '~w = ~w: a temperature (degrees Celsius) cannot be below absolute zero, -273.15'-
+      [Key, Value] ].
 
 prolog:message(error(domain_error(entity_property, Key), context(_, Msg))) -->
     { atom(Msg) }, !,

@@ -236,6 +236,18 @@ test(check_count_float, error(type_error(integer, 2.5))) :-
     kb_check_property(pancake_mix, particle_count, 2.5, _).
 test(check_negative, error(domain_error(not_less_than_zero, -1))) :-
     kb_check_property(egg, mass, -1, _).
+test(check_negative_names_the_property, Msg == 'bond_strength must not be negative') :-
+    catch(kb_check_property(pancake_mix, bond_strength, -1, _),
+          error(domain_error(not_less_than_zero, -1), context(_, Msg)), true).
+test(check_temperature_below_zero, V == -18.0) :-
+    kb_check_property(pancake_maker, temperature, -18, V).
+test(check_below_absolute_zero,
+     error(domain_error(not_below_absolute_zero(setting_temperature), -274))) :-
+    kb_check_property(pancake_mix, setting_temperature, -274, _).
+test(unit_temperature, U == 'DEG_C') :- kb_property_unit(temperature, U).
+test(pancake_maker1_heats, [H, T] == [1, 195.0]) :-
+    kb_entity_properties(pancake_maker1, P),
+    H = P.heating, T = P.temperature.
 test(check_unknown_key, error(domain_error(entity_property, colour))) :-
     kb_check_property(egg, colour, red, _).
 test(check_pose_is_no_property, error(domain_error(entity_property, x))) :-

@@ -29,7 +29,12 @@ properties take the defaults of the type's class in the ontology.
     a pancake; a heap of particles would otherwise make a lumpy one).
     The resulting `joints` form a tree (what a Bullet multibody needs);
     particles it does not reach (spilled ones) are left out.
-  - `pancake_mix`, `particle_fluid`: a fluid of `particle_count` spheres.
+  - `pancake_mix`, `particle_fluid`: a fluid of `particle_count` spheres;
+    given `positions` (world `[X,Y,Z]` of each particle, e.g. a projection's
+    `particle_positions(F)`), that many placed there, optionally with their
+    `temperatures` (degrees Celsius, one each) and `bonds` (`[I, J]` index
+    pairs of bonded particles): the state in which one projection left a
+    batter, handed on to the next (a cooked batter turned).
 
 ```
 ?- object_model(pancake, _{name: p1, radius: 0.06}, E).
@@ -57,6 +62,12 @@ type_class(particle_fluid, particle_fluid).
 % properties, `name` and `pose`.
 factory_option(pancake, particles).
 factory_option(pancake, particle_radius).
+factory_option(Fluid, State) :-
+    fluid_type(Fluid),
+    memberchk(State, [positions, temperatures, bonds]).
+
+fluid_type(pancake_mix).
+fluid_type(particle_fluid).
 
 %!  object_model(+Type, +Options:dict, -Entity:dict) is det.
 %
@@ -68,6 +79,10 @@ factory_option(pancake, particle_radius).
 %     - for `pancake` only: `particles`, a non-empty list of `[X,Y,Z]`
 %       world positions, and `particle_radius` (m; default from the
 %       `particle_fluid` class), used to compute the radius.
+%     - for `pancake_mix` and `particle_fluid` only: `positions`, a
+%       non-empty list of `[X,Y,Z]` (it sets `particle_count` and drops a
+%       `container`), and with it `temperatures` (degrees Celsius, one per
+%       position) and `bonds` (`[I, J]` pairs of 0-based indices).
 %
 %   A pancake built from particles has `model: "particles"`, its pose at
 %   the centroid of the joined particles (rpy 0) with its bottom at the
@@ -81,7 +96,11 @@ factory_option(pancake, particle_radius).
 %   @error type_error(dict, Options) if Options is not a dict.
 %   @error domain_error(entity_property, Key) for an unknown option.
 %   @error domain_error(object_option, pose) if both particles and pose
-%          are given (the particles place the pancake).
+%          are given (the particles place the pancake);
+%          domain_error(object_option, Key) for temperatures or bonds
+%          without positions.
+%   @error domain_error(bond_of(Count), Bond) for a bond that is not two
+%          distinct indices of the Count positions.
 %   @error type_error(_, _), domain_error(_, _) for bad option values
 %          (see kb_check_property/4, kb_check_pose/2).
 
@@ -151,7 +170,43 @@ build(pancake, Options, Props0, Pose, Props, Pose) :-
     ;   true
     ),
     Props = Props0.put(model, "rings").
+build(Type, Options, Props0, Pose, Props, Pose) :-
+    fluid_type(Type),
+    get_dict(positions, Options, Points),
+    !,
+    check_points(Points),
+    maplist(maplist(to_float), Points, Positions),
+    length(Points, Count),
+    (   get_dict(temperatures, Options, Ts0)
+    ->  must_be(list(number), Ts0),
+        (   length(Ts0, Count) -> true ; domain_error(list_of_length(Count), Ts0) ),
+        maplist(kb_check_property(Type, temperature), Ts0, Ts),
+        Props1 = Props0.put(temperatures, Ts)
+    ;   Props1 = Props0
+    ),
+    (   get_dict(bonds, Options, Bonds)
+    ->  must_be(list, Bonds),
+        maplist(check_bond(Count), Bonds),
+        Props2 = Props1.put(bonds, Bonds)
+    ;   Props2 = Props1
+    ),
+    (   del_dict(container, Props2, _, Props3) -> true ; Props3 = Props2 ),
+    Props = Props3.put(_{positions: Positions, particle_count: Count}).
+build(Type, Options, _, _, _, _) :-
+    fluid_type(Type),
+    member(Key, [temperatures, bonds]),
+    get_dict(Key, Options, _),
+    !,
+    domain_error(object_option, Key).
 build(_, _, Props, Pose, Props, Pose).
+
+check_bond(Count, Bond) :-
+    must_be(list(integer), Bond),
+    (   Bond = [I, J], I \== J, between(0, Count, I), I < Count,
+        between(0, Count, J), J < Count
+    ->  true
+    ;   domain_error(bond_of(Count), Bond)
+    ).
 
 max_horizontal([X,Y,_], M0, M) :-
     M is max(M0, sqrt(X*X + Y*Y)).

@@ -130,4 +130,24 @@ test(pancake_from_particles_keeps_given_radius, R == 0.09) :-
 test(pancake_particles_and_pose_exclusive, error(domain_error(object_option, pose))) :-
     object_model(pancake, _{particles: [[0,0,0.75]], pose: _{xyz: [0,0,1]}}, _).
 
+% A batter's state handed on from one projection to the next.
+test(batter_placed_by_positions) :-
+    object_model(pancake_mix, _{name: b, positions: [[0, 0, 0.755], [0.0096, 0, 0.755]],
+                                temperatures: [80, 65.5], bonds: [[0, 1]]}, E),
+    E.class == particle_fluid,
+    E.properties.particle_count == 2,
+    E.properties.positions == [[0.0, 0.0, 0.755], [0.0096, 0.0, 0.755]],
+    E.properties.temperatures == [80.0, 65.5],
+    E.properties.bonds == [[0, 1]],
+    \+ get_dict(container, E.properties, _).
+test(batter_state_needs_positions, error(domain_error(object_option, bonds))) :-
+    object_model(pancake_mix, _{bonds: [[0, 1]]}, _).
+test(batter_temperature_per_position, error(domain_error(list_of_length(1), [20, 20]))) :-
+    object_model(pancake_mix, _{positions: [[0, 0, 0]], temperatures: [20, 20]}, _).
+test(batter_below_absolute_zero,
+     error(domain_error(not_below_absolute_zero(temperature), -300))) :-
+    object_model(pancake_mix, _{positions: [[0, 0, 0]], temperatures: [-300]}, _).
+test(batter_bond_of_its_particles, error(domain_error(bond_of(2), [0, 2]))) :-
+    object_model(pancake_mix, _{positions: [[0, 0, 0], [1, 0, 0]], bonds: [[0, 2]]}, _).
+
 :- end_tests(object_factory).

@@ -172,7 +172,17 @@ def test_the_poured_pancake_experiment_builds_its_scenario_before_projecting():
     assert query.startswith('make_projection(pouring, pour, ') and setup < projection
     assert 'object(pancake, _{name: pancake1, particles: Points})' in query
     assert TABLE_III_TURNING.query(quick=True).startswith('make_projection(turning, ')
-    assert [e.key for e in EXPERIMENTS][-1] == 'table3_poured'
+    assert [e.key for e in EXPERIMENTS][-2:] == ['table3_poured', 'table3_cooked']
+
+
+def test_the_cooked_experiment_cooks_the_poured_batter_once_and_hands_it_on():
+    from projection_server.reproduce.experiments import TABLE_III_COOKED
+    query = TABLE_III_COOKED.query(quick=True)
+    pour, cook = query.index('make_projection(pouring, pour, '), query.index('wait, [')
+    turn = query.index('make_projection(S, turn_pancake, [(P1, angle, [0.3, 0.7])]')
+    assert pour < cook < turn and query.count('make_projection(') == 3
+    assert ('object(pancake_mix,\n    _{name: batter1, positions: Cooked, temperatures: '
+            'CookedT, bonds: CookedBonds})') in query
 
 
 # -- convergence: a result beside the same query at finer physics (no server) --------------

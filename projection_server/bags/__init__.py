@@ -28,6 +28,14 @@ Topics (:data:`TOPICS`):
 ``/projection/task``      ``TaskState``, every monitoring step, one per robot, of tasks that
                           report their state: the plan step (or program phase) under way
                           and its target
+``/projection/batter``    ``std_msgs/Float64MultiArray``, every monitoring step, one per fluid
+                          whose heat is simulated: ``layout.dim[0].label`` the fluid, its
+                          ``size`` 2; ``dim[1]`` the particles; ``data`` their temperatures
+                          [deg C], then their set flags (1.0 set, 0.0 not)
+``/projection/bonds``     ``std_msgs/UInt32MultiArray``, at the first monitoring step and
+                          whenever they change, one per such fluid: the bonds in force as
+                          particle index pairs (``dim[0].label`` the fluid, ``size`` the
+                          number of bonds; ``dim[1]`` of size 2), flattened
 ``/robot_description``    ``std_msgs/String``, once at t = 0: the URDF of the first robot
                           whose model has one, its links renamed to their ``/tf`` frames
                           (the root link is the robot's frame, link L is ``<robot>/L``); every

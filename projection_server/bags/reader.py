@@ -41,7 +41,7 @@ def read_bag(path: str | os.PathLike[str],
 # The topics a projection's records are read from, and the record kind of each (the
 # markers topic gives only its particles).
 _KINDS = {TOPICS[name]: name for name in ('info', 'tf_static', 'tf', 'contacts', 'gripper',
-                                          'objects', 'task')}
+                                          'objects', 'task', 'batter', 'bonds')}
 _RECORD_TOPICS = [*_KINDS, TOPICS['markers']]
 
 
@@ -78,6 +78,14 @@ def records_of(messages: Iterable[tuple[str, int, Any]]) -> Iterator[Record]:
             yield Record(kind, t_ns, (msg.robot, msg.step, msg.action, msg.target))
         elif kind == 'info':
             yield Record(kind, t_ns, msg)
+        elif kind == 'batter':
+            count = msg.layout.dim[1].size
+            data = np.asarray(msg.data, dtype=float)
+            yield Record(kind, t_ns, {msg.layout.dim[0].label: (data[:count].copy(),
+                                                                data[count:] > 0.5)})
+        elif kind == 'bonds':
+            yield Record(kind, t_ns, {msg.layout.dim[0].label: np.asarray(
+                msg.data, dtype=np.int64).reshape(-1, 2)})
         elif topic == TOPICS['markers']:   # only the particles
             particles = {marker.text: np.array([(q.x, q.y, q.z) for q in marker.points],
                                                dtype=float).reshape(-1, 3)

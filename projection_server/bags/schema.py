@@ -41,6 +41,8 @@ TOPICS = {
     'gripper': '/projection/gripper',
     'objects': '/projection/objects',
     'task': '/projection/task',
+    'batter': '/projection/batter',
+    'bonds': '/projection/bonds',
     'clock': '/clock',
     'robot_description': '/robot_description',
 }
@@ -131,7 +133,11 @@ class Record(NamedTuple):
     * ``objects``: ``[(name, load, load limit, broken), ...]``;
     * ``task``: ``(robot, step, action, target)``, one per robot (of tasks that report
       their state);
-    * ``particles``: ``{fluid: positions (n, 3)}``.
+    * ``particles``: ``{fluid: positions (n, 3)}``;
+    * ``batter``: ``{fluid: (temperatures (n,) [deg C], set flags (n,) bool)}``, every
+      sample, of fluids whose heat is simulated;
+    * ``bonds``: ``{fluid: bonded particle index pairs (m, 2)}``, at the first sample and
+      whenever the bonds in force change.
     """
 
     kind: str

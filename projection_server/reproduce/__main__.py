@@ -38,7 +38,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--server', default='/projection_server',
                         help='the node whose services to use (default: %(default)s)')
     parser.add_argument('--only', action='append', metavar='TABLE',
-                        help='run only these experiments (table1, table2, table3, table3_poured)')
+                        help='run only these experiments (table1, table2, table3, table3_poured, table3_cooked)')
     parser.add_argument('--timeout', type=float, default=900.0,
                         help='seconds one solution (projection) may take')
     parser.add_argument('--no-frames', action='store_true', help='skip rendering key frames')

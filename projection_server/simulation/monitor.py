@@ -11,6 +11,11 @@ Particle fluids are not on ``/tf``: each monitoring step writes one ``MarkerArra
 markers topic with a ``SPHERE_LIST`` marker per fluid (namespace :data:`PARTICLES_NS`, text
 = the fluid's name, points = the particles' world positions).
 
+A step hook that reports a fluid's heat (a method ``thermal_state()`` giving a
+:class:`~projection_server.simulation.batter.heat.ThermalState`) has it written every
+monitoring step: the fluid's temperatures and set flags on the batter topic, and its bonds
+in force on the bonds topic at the first step and whenever they change.
+
 A task that reports its state (a method ``state() -> [(robot, step, action, target),
 ...]``: the index of the plan step under way or -1, the step's or the program phase's name,
 the entity it acts on or ``''``) has it written every monitoring step, a ``TaskState`` per
@@ -75,6 +80,9 @@ class Monitor:
         self._clock_pack = _clock_template().pack
         self._grippers: dict[tuple[Any, str], tuple[Any, tuple[str, str, list[str]]]] = {}
         self._objects: tuple[tuple[str, ...] | None, Any] = (None, None)   # names, their pack
+        self._thermal = [hook.thermal_state for hook in physics.step_hooks
+                         if hasattr(hook, 'thermal_state')]
+        self._bonds: dict[str, Any] = {}   # fluid -> the bonds last logged
 
     def start(self, info: dict[str, str]) -> None:
         """t = 0: the projection's description, the static poses and the shapes."""
@@ -145,6 +153,8 @@ class Monitor:
         messages.append((TOPICS['objects'], _MSG + 'ObjectStateArray',
                          self._objects[1](values)))
         records.append(Record('objects', t, states))
+        for thermal_state in self._thermal:
+            messages += self._batter(t, thermal_state())
         if self._task_state is not None:
             for robot, step, action, target in self._task_state():
                 state = (str(robot), int(step), str(action), str(target))
@@ -154,6 +164,25 @@ class Monitor:
         self.bag.write_sample(t, messages)
 
     # --- the sample's parts -------------------------------------------------------------
+    def _batter(self, t: int, state: Any) -> list[tuple[str, str, bytes]]:
+        """A fluid's thermal state at ``t``: recorded, and its messages returned (its bonds
+        only when they changed)."""
+        count = len(state.temperatures)
+        messages = [(TOPICS['batter'], 'std_msgs/msg/Float64MultiArray',
+                     _batter_template(state.fluid, count).pack(
+                         [*state.temperatures.tolist(), *state.set.astype(float).tolist()]))]
+        self.records.append(Record('batter', t, {state.fluid: (state.temperatures,
+                                                               state.set)}))
+        last = self._bonds.get(state.fluid)
+        if last is None or not np.array_equal(last, state.bonds):
+            self._bonds[state.fluid] = state.bonds
+            message = _new('std_msgs/msg/UInt32MultiArray', layout=_layout(
+                state.fluid, len(state.bonds), 2), data=state.bonds.astype(np.uint32).ravel())
+            messages.append((TOPICS['bonds'], 'std_msgs/msg/UInt32MultiArray',
+                             typestore().serialize_cdr(message, 'std_msgs/msg/UInt32MultiArray')))
+            self.records.append(Record('bonds', t, {state.fluid: state.bonds}))
+        return messages
+
     def _poses(self) -> list[tuple[Any, Any]]:
         """World poses of the moving bodies and their links, the robot's links relative to
         their parent links, in the order of ``self._tf`` (the frames, planned once)."""
@@ -292,6 +321,23 @@ def _task_template(state: tuple[str, int, str, str]) -> CdrTemplate:
     return _template(_MSG + 'TaskState', _new(
         _MSG + 'TaskState', header=_header(0), robot=robot, step=step, action=action,
         target=target), ('header.stamp.*',))
+
+
+@functools.lru_cache(maxsize=16)
+def _batter_template(fluid: str, count: int) -> CdrTemplate:
+    """A ``Float64MultiArray`` of a fluid's ``count`` temperatures, then its set flags."""
+    return _template('std_msgs/msg/Float64MultiArray', _new(
+        'std_msgs/msg/Float64MultiArray', layout=_layout(fluid, 2, count),
+        data=np.zeros(2 * count)), ('data.*',))
+
+
+def _layout(label: str, rows: int, columns: int) -> Any:
+    """A two-dimensional ``MultiArrayLayout``: ``rows`` labelled ``label``, each of
+    ``columns``."""
+    dim = 'std_msgs/msg/MultiArrayDimension'
+    return _new('std_msgs/msg/MultiArrayLayout', dim=[
+        _new(dim, label=label, size=rows, stride=rows * columns),
+        _new(dim, label='', size=columns, stride=columns)], data_offset=0)
 
 
 @functools.lru_cache(maxsize=64)

@@ -1,6 +1,8 @@
 """The stage of a timeline that measures particle fluids in the monitoring samples
 (:class:`Fluids`): the ``spill`` events and the pouring quantities, with the measures of
-:mod:`projection_server.timeline.pouring`. Each is defined in the module doc of
+:mod:`projection_server.timeline.pouring`; of a batter whose heat is simulated, its
+temperature, setting and the pancake that emerges from it (``set``, ``upside_down``), with
+those of :mod:`projection_server.timeline.cooking`. Each is defined in the module doc of
 :mod:`projection_server.timeline.translate`, the one list of them all.
 """
 
@@ -10,7 +12,8 @@ from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.timeline import pouring
+from projection_server.timeline import cooking, pouring
+from projection_server.timeline.intervals import intervals_from_samples
 
 if TYPE_CHECKING:
     from projection_server.timeline.samples import Sample
@@ -29,6 +32,7 @@ class Fluids:
         self.radius: dict[str, float] = {}
         self.makers: dict[str, pouring.Disc] = {}
         self.cups: dict[str, Any] = {}
+        self._fluents: list[list[Any]] | None = None
         tables = []
         if not self.samples:
             return
@@ -51,9 +55,61 @@ class Fluids:
         return {name: pouring.Vessel(*sample.poses[name], *inside)
                 for name, inside in self.cups.items() if name in sample.poses}
 
+    def fluents(self) -> list[list[Any]]:
+        """The fluents ``set(F)`` and ``upside_down(F)`` of batters ``[name, args, start,
+        end]``."""
+        if self._fluents is not None:
+            return self._fluents
+        rows = []
+        for fluid in self._batters():
+            set_, upside_down = self._cooking(fluid)
+            times = [x.t for x in self._batter_samples(fluid)]
+            for name, values in (('set', set_), ('upside_down', upside_down)):
+                rows += [[name, [fluid], start, end]
+                         for start, end in intervals_from_samples(times, values)]
+        self._fluents = rows
+        return rows
+
+    def _batters(self) -> list[str]:
+        """The fluids whose heat was logged."""
+        return sorted({fluid for x in self.samples for fluid in x.batter})
+
+    def _batter_samples(self, fluid: str) -> list[Sample]:
+        return [x for x in self.samples if fluid in x.batter and fluid in x.particles]
+
+    def _cooking(self, fluid: str) -> tuple[list[bool], list[bool]]:
+        """Per sample of ``fluid``: whether it is set, and whether the pancake that emerged
+        from it (its largest bonded cluster, of at least ``MIN_CLUSTER`` of its particles)
+        lies upside down, turned from where its particles set."""
+        set_, upside_down = [], []
+        reference = None   # each particle's position where it was first seen set
+        known = None
+        cluster, bonds = None, None
+        for sample in self._batter_samples(fluid):
+            positions = sample.particles[fluid]
+            flags = sample.batter[fluid][1]
+            if reference is None:
+                reference = positions.copy()
+                known = flags.copy()
+            new = flags & ~known
+            reference[new] = positions[new]
+            known |= flags
+            set_.append(bool(flags.mean() >= cooking.SET_FRACTION) if len(flags) else False)
+            pairs = sample.bonds.get(fluid, np.zeros((0, 2), dtype=np.int64))
+            if pairs is not bonds:   # the same bonds (the same array) until they change
+                bonds = pairs
+                cluster = cooking.largest_cluster(pairs, len(positions))
+                if len(cluster) < max(3, cooking.MIN_CLUSTER * len(positions)):
+                    cluster = None
+            upside_down.append(cluster is not None and cooking.upside_down(
+                cooking.rotation(reference[cluster], positions[cluster])))
+        return set_, upside_down
+
     def events(self) -> list[list[Any]]:
-        """The ``spill`` events ``[name, args, start, end]``."""
-        events = []
+        """The ``spill`` events, and a batter's ``set`` and ``flip`` events, ``[name, args,
+        start, end]``."""
+        events = [[{'set': 'set', 'upside_down': 'flip'}[name], args, start, start]
+                  for name, args, start, _ in self.fluents()]
         for fluid, radius in self.radius.items():
             level = self.table_top + 2 * radius
             for sample in self.samples:
@@ -63,6 +119,25 @@ class Fluids:
                     break
         return events
 
+    @staticmethod
+    def _batter_on(maker: str, masks: list[tuple[str, np.ndarray]], last: Sample
+                   ) -> list[list[Any]]:
+        """The temperatures and bonds of the batter on ``maker`` (the particles of each
+        fluid in ``masks``), in the order of ``particles_on_positions``: the batter a next
+        projection starts from. None unless every fluid on it has its heat logged."""
+        if not masks or any(fluid not in last.batter for fluid, _ in masks):
+            return []
+        temperatures, bonds, offset = [], [], 0
+        for fluid, mask in masks:
+            index = np.full(len(mask), -1)
+            index[mask] = offset + np.arange(int(mask.sum()))
+            temperatures += [float(v) for v in last.batter[fluid][0][mask]]
+            pairs = index[last.bonds.get(fluid, np.zeros((0, 2), dtype=np.int64))]
+            bonds += [[int(i), int(j)] for i, j in pairs if i >= 0 and j >= 0]
+            offset += int(mask.sum())
+        return [['particles_on_temperatures', [maker], temperatures],
+                ['particles_on_bonds', [maker], bonds]]
+
     def quantities(self) -> list[list[Any]]:
         """The quantities ``[name, args, value]`` of the fluids at the last sample."""
         if not self.samples:
@@ -70,6 +145,7 @@ class Fluids:
         last = self.samples[-1]
         vessels = self._vessels(last)
         on = {name: [] for name in self.makers}
+        masks: dict[str, list[tuple[str, np.ndarray]]] = {name: [] for name in self.makers}
         inside = {name: 0 for name in vessels}
         rows: list[list[Any]] = []
         for fluid, radius in self.radius.items():
@@ -84,6 +160,7 @@ class Fluids:
             for name, disc in self.makers.items():
                 mask = pouring.on_disc(positions, disc, radius) & ~placed
                 on[name].append(positions[mask])
+                masks[name].append((fluid, mask))
                 placed |= mask
             rows.append(['particles_spilled', [fluid], int((~placed).sum())])
         for name, disc in self.makers.items():
@@ -100,5 +177,16 @@ class Fluids:
             if round_ is not None:
                 rows.append(['roundness', [name], round_])
                 rows.append(['spread_area', [name], pouring.spread_area(xy)])
+            rows += self._batter_on(name, masks[name], last)
         rows += [['particles_in', [name], count] for name, count in sorted(inside.items())]
+        for fluid in self._batters():
+            sample = self._batter_samples(fluid)[-1]
+            temperatures, flags = sample.batter[fluid]
+            bonds = sample.bonds.get(fluid, np.zeros((0, 2), dtype=np.int64))
+            rows += [['temperature', [fluid], float(temperatures.mean())],
+                     ['set_fraction', [fluid], float(flags.mean())],
+                     ['particle_temperatures', [fluid], [float(v) for v in temperatures]],
+                     ['particle_positions', [fluid],
+                      [[float(v) for v in point] for point in sample.particles[fluid]]],
+                     ['bonds', [fluid], [[int(i), int(j)] for i, j in bonds]]]
         return rows

@@ -69,6 +69,9 @@ class Sample:
     objects: dict[str, ObjectState] = field(default_factory=dict)
     tasks: dict[str, TaskState] = field(default_factory=dict)   # robot -> its task's state
     particles: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> (n, 3)
+    # fluid -> (temperatures (n,) [deg C], set flags (n,)), of fluids whose heat is simulated
+    batter: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    bonds: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> pairs in force (m, 2)
 
 
 class Samples:
@@ -79,6 +82,8 @@ class Samples:
         self.by_time: dict[int, Sample] = {}
         self.static: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.particles: dict[int, dict[str, np.ndarray]] = {}
+        self.batter: dict[int, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+        self.bonds: dict[int, dict[str, np.ndarray]] = {}
 
     def add(self, kind: str, t_ns: int, data: Any) -> None:
         """One record's ``kind``, time [ns] and ``data``."""
@@ -90,6 +95,9 @@ class Samples:
             return
         if kind == 'particles':   # they make no sample of their own
             self.particles.setdefault(t_ns, {}).update(data)
+            return
+        if kind in ('batter', 'bonds'):   # nor do these
+            getattr(self, kind).setdefault(t_ns, {}).update(data)
             return
         sample = self.by_time.get(t_ns)
         if sample is None:
@@ -124,7 +132,19 @@ class Samples:
         for t_ns, fluids in self.particles.items():
             if t_ns in self.by_time:
                 self.by_time[t_ns].particles = fluids
+        for t_ns, fluids in self.batter.items():
+            if t_ns in self.by_time:
+                self.by_time[t_ns].batter = fluids
         samples = [self.by_time[t] for t in sorted(self.by_time)]
+        # Bonds are logged when they change: each sample has those last logged.
+        bonds: dict[str, np.ndarray] = {}
+        changes = sorted(self.bonds.items())
+        k = 0
+        for t_ns in sorted(self.by_time):
+            while k < len(changes) and changes[k][0] <= t_ns:
+                bonds = {**bonds, **changes[k][1]}
+                k += 1
+            self.by_time[t_ns].bonds = bonds
         _compose_all([sample.poses for sample in samples])
         for sample in samples:
             for name, pose in self.static.items():

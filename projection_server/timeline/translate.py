@@ -71,6 +71,19 @@ Events (``[name, args, start, end]``, points have start = end):
 * ``spill(F)``: a particle of fluid F first reaches the table (its centre within two
   particle radii of the table's top, or lower).
 
+Of a batter F whose heat is simulated (a particle fluid on a heated pancake maker, or one
+that brings temperatures or bonds: :mod:`projection_server.simulation.batter.heat`; see
+:mod:`projection_server.timeline.cooking`):
+
+* fluent ``set(F)``: at least ``SET_FRACTION`` (0.5) of F's particles are set (have reached
+  its ``setting_temperature``); event ``set(F)``: it begins.
+* fluent ``upside_down(F)``: the pancake that emerged from F, its largest cluster of bonded
+  particles (at least ``MIN_CLUSTER``, a tenth, of F's particles), lies upside down: the
+  rotation (Kabsch) that carries its particles from where each of them was first seen set
+  to where they are turns the up axis at least 60 deg below level; event ``flip(F)``: it
+  begins. So the paper's ``holds(upside_down(_), _, TL)`` asks of the pancake that
+  emerged as of the jointed one.
+
 Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects; of every body
 O, ``lift_height(O)`` [m] (highest minus initial height), ``displacement(O)`` [m] (the
 distance from its first to its last sample's position) and ``final_pose(O)``, its world pose
@@ -83,7 +96,16 @@ fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
 particles on M ``centroid_offset_x(M)``, ``centroid_offset_y(M)`` [m] (world axes, relative to M's
 centre; left out without particles), ``roundness(M)`` and ``spread_area(M)`` [m^2] (the
 area of a uniform disc of the particles' second moments; both left out below two particles).
-The fluent ``on(F, M)`` comes from the contacts, like every ``on``.
+The fluent ``on(F, M)`` comes from the contacts, like every ``on``. Of a batter F (at the
+last sample): ``temperature(F)`` [deg C], the mean of its particles'; ``set_fraction(F)``,
+the fraction of them that is set; and its state, what a next projection starts from (the
+fluid's ``positions``, ``temperatures`` and ``bonds``): ``particle_positions(F)`` (world
+``[X, Y, Z]`` [m] of each particle), ``particle_temperatures(F)`` [deg C] and ``bonds(F)``,
+the bonds in force as ``[I, J]`` particle index pairs. Of the batter on a pancake maker M
+(particles of fluids whose heat is logged), in the order of ``particles_on_positions(M)``:
+``particles_on_temperatures(M)`` [deg C] and ``particles_on_bonds(M)`` (the bonds between
+them, as index pairs into that list): what lies on the pan, handed on without what stayed
+in the cup.
 """
 
 from __future__ import annotations
@@ -128,7 +150,8 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
     rules = Rules(samples_, settings)
     fluids = Fluids(samples_, scenario)
     return {
-        'fluents': rules.fluents(),
+        'fluents': sorted(rules.fluents() + fluids.fluents(),
+                          key=lambda r: (r[2], r[0], r[1])),
         'events': sorted_events(rules.events() + fluids.events()),
         'quantities': [[name, args, _plain(value)] for name, args, value
                        in rules.quantities() + fluids.quantities()],

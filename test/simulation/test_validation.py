@@ -119,8 +119,10 @@ def test_the_knowledge_base_offers_exactly_the_properties_the_simulator_honours(
         aliases = set(objects.get(cls).aliases)
         honoured = set(accepted_properties(cls))
         assert set(offered[cls]) <= honoured | aliases, cls
-        # The factory's particle pancake is given by a list of points, not a KB value.
-        assert honoured - set(offered[cls]) <= {'particles', 'joints'}, cls
+        # The factory's particle pancake and a batter's handed-on state are given by lists
+        # (of points, index pairs, temperatures), not KB values.
+        assert honoured - set(offered[cls]) <= {'particles', 'joints', 'positions',
+                                                'temperatures', 'bonds'}, cls
 
 
 def test_class_defaults_and_factory_objects_use_only_honoured_properties():

@@ -4,7 +4,16 @@ are reported under the fluid's name), their velocities damped by the fluid's ``d
 held together by its ``surface_tension`` and its ``viscosity`` between neighbours
 (:mod:`projection_server.simulation.batter.forces`). With a
 ``container`` (an entity built before it, e.g. the owning cup) they fill its inside from
-the bottom in hexagonal layers; without one they form a cubic block at the pose."""
+the bottom in hexagonal layers; given ``positions`` (world [m], e.g. where a projection left
+them) they are put there; without either they form a cubic block at the pose.
+
+Heat (:mod:`projection_server.simulation.batter.heat`): each particle starts at the
+fluid's ``temperature`` (or its own, ``temperatures``), warms on a heated pancake maker at
+``pan_heat_rate`` and exchanges heat with the particles it touches at
+``conduction_rate`` (and with the air at ``air_cooling_rate``); from
+``setting_temperature`` on it is set (and takes ``set_friction``, a cooked crust's, if
+given), and touching set particles bond with ``bond_strength``. ``bonds`` (index pairs) are
+bonds made when the world is built."""
 
 from __future__ import annotations
 
@@ -15,10 +24,12 @@ import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.batter import BatterForces
+from projection_server.simulation.batter.heat import BatterHeat, HeatSource
 from projection_server.simulation.objects.common import surface
-from projection_server.simulation.objects.registry import (FRACTION, NAME, NONNEGATIVE,
-                                                           ObjectClass, POSITIVE, Property,
-                                                           register, REQUIRED)
+from projection_server.simulation.objects.registry import (ANY, FRACTION, NAME, NONNEGATIVE,
+                                                           NUMBERS, ObjectClass, PAIRS, POINTS,
+                                                           POSITIVE, Property, register,
+                                                           REQUIRED)
 from projection_server.simulation.physics import Body, Fluid
 
 if TYPE_CHECKING:
@@ -28,13 +39,16 @@ if TYPE_CHECKING:
 __all__ = ['PARTICLE_FLUID']
 
 PARTICLE_GAP = 1.05      # spacing of spawned particles relative to their diameter
+ABSOLUTE_ZERO = -273.15  # deg C
 
 
 def build(physics: Physics, entity: Entity) -> None:
     c, p = physics.client, entity.properties
     count, radius = int(p['particle_count']), p['particle_radius']
     container = p.get('container')
-    if container is not None:
+    if p.get('positions') is not None:
+        positions = [list(x) for x in p['positions']]
+    elif container is not None:
         if container not in physics.containers:
             raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                                   f'{entity.name}: container {container!r} is not built '
@@ -57,6 +71,51 @@ def build(physics: Physics, entity: Entity) -> None:
         physics.step_hooks.append(BatterForces(
             physics, entity.name, radius, p['particle_mass'], p['surface_tension'],
             p['viscosity']))
+    _heat(physics, entity, radius)
+
+
+def _heat(physics: Physics, entity: Entity, radius: float) -> None:
+    """Attach the fluid's heat (:class:`BatterHeat`) when the scenario has a pancake maker
+    (heated or switched off) or the fluid brings a thermal state (temperatures, bonds)."""
+    p = entity.properties
+    makers = [maker for maker in (physics.scenario.entities if physics.scenario else ())
+              if 'heating' in maker.properties and maker.unit.fluid_role is not None]
+    sources = [HeatSource(*maker.unit.fluid_role(maker)[1:], maker.properties['temperature'])
+               for maker in makers if maker.properties['heating'] > 0]
+    if not makers and p.get('temperatures') is None and p.get('bonds') is None:
+        return
+    count = int(p['particle_count'])
+    temperatures = (np.asarray(p['temperatures'], dtype=float) if p.get('temperatures')
+                    is not None else np.full(count, p['temperature']))
+    physics.step_hooks.append(BatterHeat(
+        physics, entity.name, radius, sources, temperatures, p['setting_temperature'],
+        p['pan_heat_rate'], p['conduction_rate'], p['air_cooling_rate'],
+        p['bond_strength'], p.get('bonds') or (), p.get('set_friction')))
+
+
+def _check(name: str, p: dict[str, Any]) -> None:
+    count = int(p['particle_count'])
+    for key in ('temperature', 'setting_temperature'):
+        if p[key] < ABSOLUTE_ZERO:
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                                  f'{name}: {key} = {p[key]} deg C is below absolute zero')
+    if p.get('positions') is not None:
+        if p.get('container') is not None:
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                                  f'{name}: positions and container exclude each other')
+        if len(p['positions']) != count:
+            raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                                  f'{name}: {len(p["positions"])} positions for '
+                                  f'{count} particles')
+    if p.get('temperatures') is not None and (
+            len(p['temperatures']) != count or min(p['temperatures']) < ABSOLUTE_ZERO):
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'{name}: temperatures must be {count} temperatures '
+                              'above absolute zero, one per particle')
+    if p.get('bonds') is not None and not all(0 <= i < count and 0 <= j < count and i != j
+                                             for i, j in p['bonds']):
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'{name}: bonds must pair two particles of the {count}')
 
 
 def _block(centre: Any, count: int, radius: float) -> list[list[float]]:
@@ -112,10 +171,27 @@ PARTICLE_FLUID = register(ObjectClass(
                          'cohesion between touching particles'),
                 Property('viscosity', 0.0, NONNEGATIVE, '1/s',
                          "rate at which neighbours' relative velocity relaxes"),
-                Property('container', None, NAME, '', 'the entity it fills')),
+                Property('container', None, NAME, '', 'the entity it fills'),
+                Property('temperature', 20.0, ANY, 'degC', 'initial temperature'),
+                Property('setting_temperature', 70.0, ANY, 'degC',
+                         'a particle this warm is set (and bonds to set neighbours)'),
+                Property('pan_heat_rate', 0.0, NONNEGATIVE, '1/s',
+                         "rate towards a heated pan's temperature while touching it"),
+                Property('conduction_rate', 0.0, NONNEGATIVE, '1/s',
+                         'rate at which touching particles share their temperature'),
+                Property('air_cooling_rate', 0.0, NONNEGATIVE, '1/s',
+                         'rate towards the air temperature (20 deg C)'),
+                Property('bond_strength', 0.0, NONNEGATIVE, 'N',
+                         'largest force a bond between set particles holds'),
+                Property('set_friction', None, NONNEGATIVE, '',
+                         "a set particle's friction (a cooked crust's); absent: friction"),
+                Property('positions', None, POINTS, 'm', 'where the particles start'),
+                Property('temperatures', None, NUMBERS, 'degC', "each particle's"),
+                Property('bonds', None, PAIRS, '', 'particle index pairs bonded at start')),
     fixed={'shape': 'sphere'},
     aliases={'count': ('particle_count', 1.0)},
     build=build,
+    check=_check,
     fluid_role=lambda entity: ('fluid', entity.properties['particle_radius']),
     doc=' '.join(__doc__.split('\n\n')[0].split()),
 ))

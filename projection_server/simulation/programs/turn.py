@@ -1,5 +1,10 @@
 """``turn_pancake(angle)``: turn the pancake on the pancake maker over with the spatula.
 
+The pancake is the scenario's first ``pancake``, or, without one, its first particle fluid
+placed by ``positions`` (batter that a projection left on the pan, set or raw; its centre
+is the particles' centroid, its radius their largest horizontal distance from it plus a
+particle radius).
+
 The spatula's blade, tilted ``angle`` radians to the horizontal (front edge down), starts
 with its front edge just outside the pancake's rim on the side of the spatula's scenario
 pose (-x of the pancake, the blade pointing +x) and :data:`CLEARANCE` above the maker. It is
@@ -70,11 +75,14 @@ class TurnPancake:
     def __init__(self, physics: Physics, scenario: Scenario, params: dict[str, float],
                  rng: np.random.Generator):
         spatula = next(scenario.of_class('spatula'), None)
-        pancake = next(scenario.of_class('pancake'), None)
+        pancake = next(scenario.of_class('pancake'), None) or next(
+            (e for e in scenario.of_class('particle_fluid')
+             if e.properties.get('positions') is not None), None)
         maker = next(scenario.of_class('pancake_maker'), None)
         if spatula is None or pancake is None or maker is None:
             raise ProjectionError(ErrorKind.INVALID_SCENARIO,
-                                  'turn_pancake needs a spatula, a pancake and a pancake_maker')
+                                  'turn_pancake needs a spatula, a pancake (or batter placed '
+                                  'by positions) and a pancake_maker')
         c = physics.client
         self._client, self._spatula = c, physics.body(spatula.name).body_id
         robot = next(scenario.of_class('robot'), None)
@@ -84,8 +92,14 @@ class TurnPancake:
         p = spatula.properties
         # The front edge's bottom, in the blade's frame.
         self._edge = np.array([p['size_x'] / 2, 0.0, -p['size_z'] / 2])
-        px, py, _ = pancake.pose.xyz
-        radius = pancake.properties['radius']
+        if pancake.cls == 'pancake':
+            px, py, _ = pancake.pose.xyz
+            radius = pancake.properties['radius']
+        else:
+            xy = np.asarray(pancake.properties['positions'], dtype=float)[:, :2]
+            px, py = xy.mean(axis=0)
+            radius = (float(np.hypot(*(xy - (px, py)).T).max())
+                      + pancake.properties['particle_radius'])
         top = maker.pose.xyz[2] + maker.properties['height'] / 2
         self._start = np.array([px - radius - START_GAP, py, top + CLEARANCE])
         self._end = np.array([px + REACH * radius, py, top + CLEARANCE])
