@@ -22,7 +22,8 @@ def pour(call, prop, factors, angle, time, quantity):
     """``quantity`` on the pancake maker after a pour at ``angle`` held ``time`` s, for the
     knowledge base's ``prop`` of the mix times each of ``factors``."""
     r, sols = ask(call, f'''
-        kb_entity_properties(pancake_mix1, P), get_dict({prop}, P, Base),
+        scenario_entity(pouring, pancake_mix1, E), get_dict(properties, E, P),
+        get_dict({prop}, P, Base),
         findall(V, (member(F, {list(factors)}), Value is F * Base,
                     copy_scenario(pouring, S),
                     scenario_set_property(S, pancake_mix1, {prop}, Value),
@@ -34,9 +35,9 @@ def pour(call, prop, factors, angle, time, quantity):
 
 
 def test_the_knowledge_bases_mix_has_surface_tension_and_viscosity(call):
-    r, sols = ask(call, 'kb_entity_properties(pancake_mix1, P), '
-                        'get_dict(surface_tension, P, G), get_dict(viscosity, P, V), '
-                        'kb_property_unit(surface_tension, U)')
+    r, sols = ask(call, 'scenario_entity(pouring, pancake_mix1, E), '
+                        'get_dict(properties, E, P), '
+                        'get_dict(surface_tension, P, G), get_dict(viscosity, P, V)')
     assert r.ok, r.message
     assert sols[0]['G'] > 0 and sols[0]['V'] > 0
 
