@@ -49,8 +49,11 @@ def test_more_surface_tension_puts_fewer_particles_on_the_pan_at_the_smallest_an
 
 
 def test_a_thinner_batter_spreads_wider(call):
-    (thin, base), nu = pour(call, 'viscosity', (0, 1), 2.14, 0.5, 'spread_area')
-    assert thin > base, (nu, thin, base)
+    """Half the batter's drag (its bulk viscosity): the cup emptied onto the pan (2.14 rad
+    held 2 s), the batter covers more of it. (Viscosity between particles does not thin a
+    heap that rolling friction holds up: bench/RESULTS.md, 2026-11-28.)"""
+    (thin, base), drag = pour(call, 'damping', (0.5, 1), 2.14, 2.0, 'spread_area')
+    assert thin > 1.05 * base, (drag, thin, base)
 
 
 @pytest.mark.parametrize('prop', ['surface_tension', 'viscosity'])
