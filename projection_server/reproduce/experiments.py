@@ -12,7 +12,7 @@ that each projection is reported as its solution arrives.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import time
 from typing import Any, Callable, TYPE_CHECKING
@@ -359,6 +359,8 @@ TABLE_III_TURNING = Experiment(
 # Table III again with the pancake the object model factory builds from the particles one
 # pouring projection of Table II left on the pan (the paper's Fig. 7), in the turning
 # scenario's kitchen with the same spatula.
+POUR_ON_PAN = ('make_projection(pouring, pour, [(_, angle, [2.14]), (_, time, [0.5]), '
+               '(_, position, [0.0])], 600.0, PourTL),\n')
 TABLE_III_POURED_PANCAKE = Experiment(
     key='table3_poured',
     title='TABLE III with the poured pancake (Fig. 7)',
@@ -370,8 +372,7 @@ TABLE_III_POURED_PANCAKE = Experiment(
     sim_timeout=600.0,
     cols='angle',
     showcases=(Showcase({'angle': 0.1}, 'angle 0.1: the poured pancake mid-flip', 'pancake1'),),
-    setup=('make_projection(pouring, pour, [(_, angle, [2.14]), (_, time, [0.5]), '
-           '(_, position, [0.0])], 600.0, PourTL),\n'
+    setup=(POUR_ON_PAN +
            'quantity(particles_on_positions(pancake_maker1), Points, PourTL),\n'
            'create_scenario(S),\n'
            'add_to_scenario(S, [kitchen_env, pr2_robot, pancake_maker1, spatula1,\n'
@@ -380,13 +381,13 @@ TABLE_III_POURED_PANCAKE = Experiment(
 
 # Table III with the pancake that emerges from the poured batter on the hot pan (issue 28):
 # the batter one pour of Table II left on the pan (each of its particles: its position,
-# temperature and bonds; not what stayed in the cup) cooks for COOK_TIME seconds on pancake_maker1 (195 degC) in a projection of its
-# own (wait, at the pour's 20 solver iterations: a batter at rest), and what it became is
+# temperature and bonds; not what stayed in the cup) cooks for COOK_TIME seconds on
+# pancake_maker1 (195 degC) in a projection of its own (wait, at the pour's 20 solver
+# iterations: a batter at rest), and what it became is
 # handed on to the turning scenario's kitchen, pan and spatula. Cook once, turn six times.
 COOK_TIME = 6.0   # s: the poured batter (153 particles) is 0.35 set at 5 s, set through at 6 s
 COOKED_SETUP = (
-    'make_projection(pouring, pour, [(_, angle, [2.14]), (_, time, [0.5]), '
-    '(_, position, [0.0])], 600.0, PourTL),\n'
+    POUR_ON_PAN +
     'quantity(particles_on_positions(pancake_maker1), Poured, PourTL),\n'
     'quantity(particles_on_temperatures(pancake_maker1), PouredT, PourTL),\n'
     'quantity(particles_on_bonds(pancake_maker1), PouredBonds, PourTL),\n'
@@ -402,16 +403,10 @@ COOKED_SETUP = (
     'create_scenario(S),\n'
     'add_to_scenario(S, [kitchen_env, pr2_robot, pancake_maker1, spatula1, object(pancake_mix,\n'
     '    _{name: batter1, positions: Cooked, temperatures: CookedT, bonds: CookedBonds})])')
-TABLE_III_COOKED = Experiment(
+TABLE_III_COOKED = replace(
+    TABLE_III_POURED_PANCAKE,
     key='table3_cooked',
     title=f'TABLE III with the pancake cooked from the poured batter ({COOK_TIME:g} s)',
-    scenario='S',
-    program='turn_pancake',
-    params=TABLE_III_TURNING.params,
-    measures=TABLE_III_TURNING.measures,
-    paper=paper.TABLE_III,
-    sim_timeout=600.0,
-    cols='angle',
     showcases=(Showcase({'angle': 0.4}, 'angle 0.4: the cooked pancake mid-flip',
                         'pancake_maker1'),),
     setup=COOKED_SETUP,
