@@ -72,7 +72,7 @@ class GraspObject:
         # (14 m/s^2 at 240 Hz, 68 at 960 Hz, against the lift's 0.58): the egg slid in the
         # pads at every jump, and the grip force that held it depended on the time step.
         self._rate = physics.settings.physics.rate_hz
-        self._target: tuple[float, ...] | None = None
+        self._commanded: tuple[float, ...] | None = None
         self._follow()
         physics.step_hooks.append(self._follow)
 
@@ -83,8 +83,8 @@ class GraspObject:
         lift, lift_rate = _min_jerk(t, SQUEEZED, LIFTED)
         target = (APPROACH_DISTANCE * (1.0 - approach), LIFT_HEIGHT * lift,
                   -APPROACH_DISTANCE * approach_rate, LIFT_HEIGHT * lift_rate)
-        if target != self._target:   # at rest between the motions: nothing to send
-            self._target = target
+        if target != self._commanded:   # at rest between the motions: nothing to send
+            self._commanded = target
             self.gripper.move(*target)
 
     def control(self, physics: Physics) -> None:
