@@ -49,7 +49,7 @@ adds those of its parameter `kb_files` at start.
 ```
 ?- knowledge_base_load.
 ?- kb_entity_properties(egg1, P).
-P = _{breaking_force:10.0, diameter:0.044, friction:0.35, length:0.058,
+P = _{breaking_force:10.0, diameter:0.044, friction:0.22, length:0.058,
       mass:0.06, restitution:0.05, rolling_friction:0.001, shape:"ellipsoid",
       spinning_friction:0.001}.
 ?- kb_scenario(grasping, M).

@@ -32,8 +32,11 @@ def entity_property(call, scenario, name, key):
     return sols[0]['V']
 
 
+# The pads hold the egg through the lift iff 2 mu F >= m (g + a), a = 0.58 m/s^2 at the
+# lift's peak: egg1 (0.22, 60 g) needs 0.623 N; at 3 N it has 1.32 N, at 0.08 0.48 N; at
+# 2 N it has 0.88 N, a 120 g egg needs 1.25 N.
 @pytest.mark.parametrize('key, kb_value, value, force, kb_outcome, outcome', [
-    ('friction', 0.35, 0.08, 3, 'ok', 'slip'),          # a more slippery shell slips
+    ('friction', 0.22, 0.08, 3, 'ok', 'slip'),          # a more slippery shell slips
     ('mass', 0.06, 0.12, 2, 'ok', 'slip'),              # a heavier egg slips
     ('breaking_force', 10.0, 20.0, 11, 'break', 'ok'),  # a stronger shell holds at 11 N
     ('breaking_force', 10.0, 5.0, 5, 'ok', 'break'),    # a weaker shell breaks at 5 N
@@ -53,12 +56,14 @@ def test_a_counterfactual_egg_changes_the_outcome_at_the_same_force(
 def test_an_egg_that_breaks_as_it_is_dropped_is_broken_after_the_drop(call, breaking_force):
     # Section II's query. A weak shell breaks from the pads' rims as the heavy egg slides out
     # of the grip (3 N) or when it lands (5 N); either way broken(egg1) holds after the drop.
+    # 2.3 N lifts the 100 g egg (friction 0.22: 2 * 0.22 * 2.3 = 1.01 N >= m g = 0.98 N)
+    # but loses it at the lift's peak (< m (g + a) = 1.04 N); measured drop: 2.28-2.31 N.
     sols = ask(call, f'''
         create_scenario(S),
         add_to_scenario(S, [kitchen_env, pr2_robot, egg1]),
         scenario_set_property(S, egg1, mass, 0.1),
         scenario_set_property(S, egg1, breaking_force, {breaking_force}),
-        make_projection(S, grasp_object, [(_, force, [1.5])], TL),
+        make_projection(S, grasp_object, [(_, force, [2.3])], TL),
         with_timeline(TL, ( occurs(Evt, T1), typeOf(Evt, dropping), objOf(Evt, egg1),
                             after(T2, T1), holds(F, T2), objOf(F, egg1) ))''')
     fluents = {json.dumps(s['F'], sort_keys=True) for s in sols}

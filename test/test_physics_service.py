@@ -63,3 +63,18 @@ def test_a_bad_option_is_an_error_naming_it(call, options, kind, words):
     assert not r.ok and r.error_kind == kind, (r.error_kind, r.message)
     text = r.message + r.error
     assert all(w in text.replace(' ', '') for w in words), text
+
+
+def test_whether_a_2_n_grasp_holds_the_egg_does_not_depend_on_the_rate(call):
+    # Textbook: two pads of 2 N hold the 60 g egg through the lift from friction 0.156 on.
+    # A gantry that jumped to a new target at every control step shook the egg loose below
+    # friction 0.21 at 240 Hz and below 0.26 at 960 Hz (bench/RESULTS.md, 2026-11-28).
+    r, sols = ask(call, '''
+        member(Friction, [0.13, 0.24]), member(Rate, [240, 960]),
+        copy_scenario(grasping, S), scenario_set_property(S, egg1, friction, Friction),
+        make_projection(S, grasp_object, [(_, force, [2])], [physics(_{rate_hz: Rate})], T),
+        ( occurs(slip, _, T) -> Outcome = slip ; Outcome = ok ),
+        delete_scenario(S)''')
+    assert r.ok, r.message
+    assert [(s['Friction'], s['Rate'], s['Outcome']) for s in sols] == [
+        (0.13, 240, 'slip'), (0.13, 960, 'slip'), (0.24, 240, 'ok'), (0.24, 960, 'ok')]

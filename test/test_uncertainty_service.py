@@ -35,8 +35,8 @@ def probability(call, belief: str, forces, condition=OK, options='[samples(20), 
 
 def test_a_wider_friction_spread_lowers_the_probability_of_holding_at_the_slip_boundary(
         call):
-    # At 2 N the egg of the mean friction (0.3) just holds; a wider spread puts more eggs
-    # below the friction that 2 N needs.
+    # 2 N holds an egg of friction from 0.156 (2 * 2 N * mu >= m (g + a) = 0.623 N): every
+    # egg of the narrow belief; the wider spread puts about a fifth of its eggs below it.
     narrow = probability(call, 'scenario_set_property(S, egg1, friction, uniform(0.2, 0.4))',
                          [2])[2]
     wide = probability(call, 'scenario_set_property(S, egg1, friction, uniform(0.05, 0.55))',
@@ -106,7 +106,8 @@ def test_without_samples_the_nominal_world_is_projected(call):
 
 
 def test_decide_stops_sampling_a_clearly_decided_parametrization(call):
-    decided = probability(call, 'scenario_set_property(S, egg1, friction, uniform(0.2, 0.4))',
+    # 1 N holds an egg of friction from 0.307 (2 * 1 N * mu >= 0.623 N): none of these.
+    decided = probability(call, 'scenario_set_property(S, egg1, friction, uniform(0.15, 0.29))',
                           [1, 5], options='[samples(30), seed(1), decide(0.9)]')
     assert decided[1]['n'] < 30 and decided[1]['high'] < 0.9, decided[1]   # slips: clear
     assert decided[5]['p'] == 1.0
@@ -142,9 +143,11 @@ def test_a_dangerous_condition_is_refused_before_anything_runs(call):
     assert not os.path.exists('/tmp/projection_server_pwned')
 
 
-def test_table_i_for_an_egg_whose_friction_lies_between_0_2_and_0_4(call):
+def test_table_i_for_an_egg_whose_friction_lies_between_0_15_and_0_29(call):
+    # A belief centred on egg1's 0.22: 1 N holds from 0.307, 3 N from 0.104 (2 F mu >=
+    # m (g + a) = 0.623 N), so 1 N slips on every egg of it and 5 N holds every one.
     sols = solutions(call, f'''copy_scenario(grasping, S),
-        scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)),
+        scenario_set_property(S, egg1, friction, uniform(0.15, 0.29)),
         outcome_probability(S, grasp_object, [(Pos, position, [-0.02, 0.00, 0.02]),
                                               (F, force, [1, 3, 5, 7, 9, 11])],
                             [samples(10), seed(2)], TL, {OK}, P)''')

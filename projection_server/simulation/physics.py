@@ -200,12 +200,16 @@ class Gripper:
         self.move(approach, lift)
         self.open(opening, speed=0.1)
 
-    def move(self, approach: float, lift: float) -> None:
-        """Position targets of the gantry joints [m]."""
-        for joint, target in ((self._approach, approach), (self._lift, lift)):
-            self._client.setJointMotorControl2(
-                self.body_id, joint, self._client.POSITION_CONTROL,
-                targetPosition=target, force=self._max_joint_force, positionGain=self._gain)
+    def move(self, approach: float, lift: float, approach_speed: float = 0.0,
+             lift_speed: float = 0.0) -> None:
+        """Position targets of the gantry joints [m], and the speeds [m/s] at which the
+        targets move (fed forward: a target that moves smoothly is followed without lag)."""
+        c = self._client
+        c.setJointMotorControlArray(
+            self.body_id, [self._approach, self._lift], c.POSITION_CONTROL,
+            targetPositions=[approach, lift], targetVelocities=[approach_speed, lift_speed],
+            forces=[self._max_joint_force] * 2, positionGains=[self._gain] * 2,
+            velocityGains=[1.0, 1.0])
 
     def close(self, force: float, speed: float) -> None:
         """Close both fingers at ``speed`` [m/s], each pushing with at most ``force`` [N]

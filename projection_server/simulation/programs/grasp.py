@@ -35,10 +35,12 @@ PHASES = (('settle', SETTLED), ('approach', APPROACHED), ('close', CLOSED),
           ('squeeze', SQUEEZED), ('lift', LIFTED), ('hold', HELD))
 
 
-def _min_jerk(t: float, start: float, end: float) -> float:
-    """Progress 0..1 of a minimum-jerk motion between times ``start`` and ``end``."""
+def _min_jerk(t: float, start: float, end: float) -> tuple[float, float]:
+    """Progress 0..1 of a minimum-jerk motion between times ``start`` and ``end``, and its
+    rate [1/s]."""
     s = min(max((t - start) / (end - start), 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+    return (s * s * s * (10.0 - 15.0 * s + 6.0 * s * s),
+            30.0 * s * s * (1.0 - s) * (1.0 - s) / (end - start))
 
 
 class GraspObject:
@@ -64,13 +66,29 @@ class GraspObject:
         grasp = np.asarray(position) + params['position'] * axis
         self.gripper.place(tuple(grasp), physics.client.getQuaternionFromEuler((0, 0, yaw)),
                            approach=APPROACH_DISTANCE, lift=0.0, opening=OPEN_WIDTH)
+        # The gantry is given its targets at every physics step, with the speeds at which
+        # they move: targets that jumped at the control rate made the pads' speed jump at
+        # every control step, in one physics step, an acceleration that grew with the rate
+        # (14 m/s^2 at 240 Hz, 68 at 960 Hz, against the lift's 0.58): the egg slid in the
+        # pads at every jump, and the grip force that held it depended on the time step.
+        self._rate = physics.settings.physics.rate_hz
+        self._commanded: tuple[float, ...] | None = None
+        self._follow()
+        physics.step_hooks.append(self._follow)
+
+    def _follow(self) -> None:
+        """The gantry's targets of the next physics step (after each step)."""
+        t = (self._physics.step_count + 1) / self._rate
+        approach, approach_rate = _min_jerk(t, SETTLED, APPROACHED)
+        lift, lift_rate = _min_jerk(t, SQUEEZED, LIFTED)
+        target = (APPROACH_DISTANCE * (1.0 - approach), LIFT_HEIGHT * lift,
+                  -APPROACH_DISTANCE * approach_rate, LIFT_HEIGHT * lift_rate)
+        if target != self._commanded:   # at rest between the motions: nothing to send
+            self._commanded = target
+            self.gripper.move(*target)
 
     def control(self, physics: Physics) -> None:
-        t = physics.time
-        approach = APPROACH_DISTANCE * (1.0 - _min_jerk(t, SETTLED, APPROACHED))
-        lift = LIFT_HEIGHT * _min_jerk(t, SQUEEZED, LIFTED)
-        self.gripper.move(approach, lift)
-        if t >= APPROACHED and self.gripper.command != 'close':
+        if physics.time >= APPROACHED and self.gripper.command != 'close':
             self.gripper.close(self.force, CLOSING_SPEED)
 
     def state(self) -> list[tuple[str, int, str, str]]:
