@@ -57,7 +57,7 @@ test(grasping_egg_as_in_contract) :-
     scenario_entity(grasping, egg1, E),
     P = E.properties,
     P.shape == "ellipsoid", P.length == 0.058, P.diameter == 0.044,
-    P.mass == 0.06, P.friction == 0.35, P.restitution == 0.05,
+    P.mass == 0.06, P.friction == 0.22, P.restitution == 0.05,
     P.breaking_force == 10.0.
 test(grasping_environment_has_table_and_floor, Parts == [floor1, table1]) :-
     scenario_entity(grasping, kitchen_env, E),
@@ -244,7 +244,7 @@ test(set_property, [setup(fresh(S)), cleanup(gone(S)), F == 0.2]) :-
     add_to_scenario(S, [kitchen_env, pr2_robot, egg1]),
     scenario_set_property(S, egg1, friction, 0.2),
     prop(S, egg1, friction, F).
-test(set_property_leaves_kb_alone, [setup(fresh(S)), cleanup(gone(S)), F == 0.35]) :-
+test(set_property_leaves_kb_alone, [setup(fresh(S)), cleanup(gone(S)), F == 0.22]) :-
     add_to_scenario(S, egg1),
     scenario_set_property(S, egg1, friction, 0.2),
     kb_entity_properties(egg1, P),
@@ -284,7 +284,7 @@ test(set_on_copy_of_kb_scenario, [cleanup(gone(C)), F == 0.1]) :-
     copy_scenario(grasping, C),
     scenario_set_property(C, egg1, friction, 0.1),
     prop(C, egg1, friction, F),
-    prop(grasping, egg1, friction, 0.35).
+    prop(grasping, egg1, friction, 0.22).
 test(set_unknown_entity, [setup(fresh(S)), cleanup(gone(S)),
                           error(existence_error(entity, egg9))]) :-
     add_to_scenario(S, egg1),
@@ -305,7 +305,7 @@ test(set_bad_pose, [setup(fresh(S)), cleanup(gone(S)), error(type_error(dict, [0
     scenario_set_property(S, egg1, pose, [0,0,1]).
 test(set_unknown_scenario, error(existence_error(scenario, nowhere))) :-
     scenario_set_property(nowhere, egg1, friction, 0.2).
-test(set_failed_changes_nothing, [setup(fresh(S)), cleanup(gone(S)), F == 0.35]) :-
+test(set_failed_changes_nothing, [setup(fresh(S)), cleanup(gone(S)), F == 0.22]) :-
     add_to_scenario(S, egg1),
     catch(scenario_set_property(S, egg1, friction, -1), _, true),
     prop(S, egg1, friction, F).

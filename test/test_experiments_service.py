@@ -114,7 +114,9 @@ def test_a_query_selects_the_pour_with_most_mix_on_the_pan_and_no_spill(call):
         quantity(particles_spilled(pancake_mix1), S, TL),
         ( occurs(spill(pancake_mix1), _, TL) -> Spill = yes ; Spill = no )''')
     assert len(measured) == 4
-    assert all((s['S'] > 0) == (s['Spill'] == 'yes') for s in measured)
+    # A spill puts particles neither in the cup nor on the pan; the converse need not hold:
+    # cohesive batter may cling to the outside of the cup's lip without reaching the table.
+    assert all(s['S'] > 0 for s in measured if s['Spill'] == 'yes')
     assert any(s['Spill'] == 'yes' for s in measured)   # the pile near the edge runs over
     (best,) = ask(call, f'''
         aggregate_all(max(N, A-P),
