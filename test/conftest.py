@@ -14,7 +14,7 @@ import pytest
 
 NODE_PARAMS = {
     'default_timeout': 5.0,
-    'idle_timeout': 2.0,
+    'idle_timeout': 5.0,
     'max_engines': 6,
     'max_solutions': 50,
 }

@@ -162,7 +162,7 @@ def test_too_many_live_queries_is_a_resource_error(call):
 
 def test_an_idle_incremental_query_is_closed(call):
     assert query(call, 'between(1, 3, X)', mode=Q.INCREMENTAL, id='idle').ok
-    time.sleep(3.5)  # idle_timeout is 2 s in the test node, reaped every second
+    time.sleep(6.5)  # idle_timeout is 5 s in the test node, reaped every second
     r = call(PrologNextSolution, 'next_solution', PrologNextSolution.Request(id='idle'))
     assert r.status == N.WRONG_ID and 'idle' in r.message
 
