@@ -12,7 +12,7 @@ Every particle has a temperature ``T`` [deg C]. After every physics step of ``dt
   relax towards each other at the rate ``conduction_rate`` ``k_c`` [1/s]: each pair
   exchanges ``a (T_j - T_i)`` with ``a = (1 - exp(-2 k_c dt)) / 2`` (an isolated pair's
   difference then decays exactly as ``exp(-2 k_c t)``), all pairs at once from the
-  temperatures before the exchange. ``a`` is capped at ``1 /`` :data:`KISSING`, so each new
+  temperatures before the exchange. ``a`` is capped at ``1 /`` :data:`~.forces.KISSING`, so each new
   temperature is a weighted mean of old ones (no particle overshoots, whatever the step);
   heat is conserved.
 * **Air** (optional, ``air_cooling_rate`` ``k_a`` [1/s]): every particle moves towards
@@ -52,6 +52,7 @@ from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
 
+from projection_server.simulation.batter.forces import KISSING
 from projection_server.simulation.batter.neighbours import NeighbourList
 
 if TYPE_CHECKING:
@@ -60,13 +61,13 @@ if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Scenario
 
-__all__ = ['AIR_TEMPERATURE', 'BREAK_GAP', 'BatterHeat', 'HeatSource', 'KISSING',
+__all__ = ['ABSOLUTE_ZERO', 'AIR_TEMPERATURE', 'BREAK_GAP', 'BatterHeat', 'HeatSource',
            'TOUCH_TOLERANCE', 'ThermalState', 'unreachable_setting']
 
 TOUCH_TOLERANCE = 0.05   # touching: a gap of up to this many particle radii
 BREAK_GAP = 0.5          # a bond breaks at a gap of this many particle radii
-KISSING = 12             # touching neighbours of a particle in a dense packing
 AIR_TEMPERATURE = 20.0   # deg C of the kitchen's air
+ABSOLUTE_ZERO = -273.15  # deg C
 
 
 def unreachable_setting(scenario: Scenario) -> list[str]:

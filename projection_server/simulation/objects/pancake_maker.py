@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation.batter.heat import ABSOLUTE_ZERO
 from projection_server.simulation.objects.common import primitive
 from projection_server.simulation.objects.registry import (ANY, FRACTION, NONNEGATIVE,
                                                            ObjectClass, POSITIVE, Property,
@@ -34,7 +35,7 @@ def _fluid_role(entity: Entity) -> tuple[Any, ...]:
 
 
 def _check(name: str, p: dict[str, Any]) -> None:
-    if p['temperature'] < -273.15:
+    if p['temperature'] < ABSOLUTE_ZERO:
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{name}: temperature = {p["temperature"]} deg C is below '
                               'absolute zero')

@@ -24,7 +24,7 @@ import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.batter import BatterForces
-from projection_server.simulation.batter.heat import BatterHeat, HeatSource
+from projection_server.simulation.batter.heat import ABSOLUTE_ZERO, BatterHeat, HeatSource
 from projection_server.simulation.objects.common import surface
 from projection_server.simulation.objects.registry import (ANY, FRACTION, NAME, NONNEGATIVE,
                                                            NUMBERS, ObjectClass, PAIRS, POINTS,
@@ -39,7 +39,6 @@ if TYPE_CHECKING:
 __all__ = ['PARTICLE_FLUID']
 
 PARTICLE_GAP = 1.05      # spacing of spawned particles relative to their diameter
-ABSOLUTE_ZERO = -273.15  # deg C
 
 
 def build(physics: Physics, entity: Entity) -> None:
