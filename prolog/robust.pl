@@ -1,6 +1,7 @@
 :- module(robust,
-          [ robust_parametrization/7    % +Scenario, +Program, +Params, +Options, ?TL,
+          [ robust_parametrization/7,   % +Scenario, +Program, +Params, +Options, ?TL,
                                         % :Condition, -Best
+            below_certifying_worlds/1   % +N
           ]).
 :- autoload(library(apply), [maplist/2, maplist/3, maplist/4, foldl/4, foldl/6]).
 :- autoload(library(yall), [(>>)/3, (>>)/4, (>>)/5]).
@@ -95,6 +96,8 @@ it).
 %          domain_error(risk, A) for a value outside its range
 %   @error domain_error(positive_integer, N) for certify(N), samples(N) or
 %          batch(N) with N < 1
+%   @error domain_error(choosing_worlds(at_most(Offset)), samples(N)) for more
+%          choosing worlds than lie below the certifying ones (Offset = 1000000)
 %   @error domain_error(scenario_with_beliefs, Scenario) for a scenario whose
 %          properties are all numbers: a certified choice needs a belief
 %   @error domain_error(robust_option, O) for an unknown option
@@ -174,6 +177,7 @@ robust_options(Options, opts(D, C, A, M, N, Batch, Seed, Prefer), Pass) :-
         positive_integer(M)
     ),
     positive_integer(N),
+    below_certifying_worlds(N),
     (   Batch == workers -> true ; positive_integer(Batch) ),
     must_be(integer, Seed),
     must_be(nonvar, Prefer),
@@ -189,6 +193,12 @@ option_or(Option, Options, Default, Rest) :-
     ;   arg(1, Option, Default),
         Rest = Options
     ).
+
+% below_certifying_worlds(+N): the N choosing worlds of a seed (0..N-1) stay clear of its
+% certifying worlds, which start at selection.CERTIFY_OFFSET.
+below_certifying_worlds(N) :-
+    py_call('projection_server.selection':'CERTIFY_OFFSET', Offset),
+    (   N =< Offset -> true ; domain_error(choosing_worlds(at_most(Offset)), samples(N)) ).
 
 positive_integer(N) :-
     must_be(integer, N),

@@ -16,6 +16,9 @@ test(certify_zero, error(domain_error(positive_integer, 0))) :-
     robust([certify(0)]).
 test(samples_zero, error(domain_error(positive_integer, 0))) :-
     robust([certify(5), samples(0)]).
+test(samples_reaching_the_certifying_worlds,
+     error(domain_error(choosing_worlds(at_most(1000000)), samples(1000001)))) :-
+    robust([certify(5), samples(1000001)]).
 test(unknown_option, error(domain_error(robust_option, colour(red)))) :-
     robust([certify(5), colour(red)]).
 test(passed_on, Pass =@= [timeout(30), physics(_{rate_hz: 480})]) :-

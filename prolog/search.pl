@@ -18,6 +18,7 @@
               [make_projection/5, projection_program/2, with_query_context/2,
                current_query_context/1, parameter_values/2]).
 :- use_module(timeline, [quantity/3, timeline_exists/1]).
+:- use_module(robust, [below_certifying_worlds/1]).
 :- use_module(uncertainty, [wilson_interval/4]).
 
 :- meta_predicate
@@ -308,7 +309,8 @@ truth(Timeline, TL, Goal, Holds) :-
 %          is `range(Low, High)`
 %   @error domain_error(samples_with_chance, O) for samples(N) without
 %          chance(P) or chance(P) without samples(N); domain_error(chance, P)
-%          for P outside (0, 1)
+%          for P outside (0, 1); domain_error(choosing_worlds(at_most(1000000)),
+%          samples(N)) for more worlds than lie below the certifying ones
 %   @error domain_error(search_range, range(Low, High)) unless Low < High
 %   @error domain_error(search_option, Option) for outcome_boundary/7's
 %          options; domain_error(max_projections, max_projections(N)),
@@ -395,6 +397,7 @@ belief_search(Own, Belief) :-
     ;   N == none
     ->  domain_error(samples_with_chance, chance(P))
     ;   check_integer(samples, N, 1),
+        below_certifying_worlds(N),
         must_be(number, P),
         (   P > 0, P < 1 -> true ; domain_error(chance, P) ),
         (   M0 == default

@@ -136,6 +136,9 @@ test(chance_is_a_probability, error(domain_error(chance, 1.5))) :-
     search:belief_search([samples(5), chance(1.5)], _).
 test(certify_at_least_one, error(domain_error(certify, certify(0)))) :-
     search:belief_search([samples(5), chance(0.9), certify(0)], _).
+test(samples_reaching_the_certifying_worlds,
+     error(domain_error(choosing_worlds(at_most(1000000)), samples(1000001)))) :-
+    search:belief_search([samples(1000001), chance(0.9)], _).
 test(a_belief_search, B == belief(16, 0.8, 5)) :-
     search:best_options([samples(16), chance(0.8), certify(5), timeout(9)], Own, Pass),
     Pass == [timeout(9)],
