@@ -11,8 +11,10 @@ and each cooked batter is turned at ``--angles`` at each ``--turn`` physics, as
 ``reproduce``'s ``table3_cooked`` does. Printed per turn: the outcome (upside_down), the
 bonds at the start and at the end, the bonds broken while pushed / lifted / flipped / at
 rest, the largest bonded cluster at the end (particles), where the cluster's centroid ends
-(x, z relative to where it started), and the largest distance between the spatula's
-commanded and actual front edge during the push [mm].
+(x, z relative to where it started), and the largest distance of the spatula's front edge
+from its path (``TurnPancake.pose`` at the same time) during the push [mm]. With
+``COOKED_TURN_TRACE=1`` each turn also prints, every 0.1 s, the batter's centroid, the z
+component of its up axis (the Kabsch rotation from where it started) and the spatula.
 """
 
 from __future__ import annotations
@@ -20,7 +22,6 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-import statistics
 import tempfile
 import time
 
@@ -32,7 +33,7 @@ TRACE = os.environ.get('COOKED_TURN_TRACE') == '1'
 POUR = {'angle': 2.14, 'time': 0.5, 'position': 0.0}
 
 
-def _settings(program, physics):
+def _settings(program=None, physics=None):
     """The settings file's (a job applies its program's and its own physics)."""
     from projection_server.settings import load_settings
 
@@ -129,7 +130,7 @@ def turn(batter: dict, angle: float, physics: dict, bags: Path, changes: dict) -
     d = scenario('kitchen_env, pr2_robot, pancake_maker1, spatula1', batter)
     _change(d, changes)
     job = Job.checked(d, 'turn_pancake', {'angle': angle}, physics)
-    trace = {'broken': {}, 'lag': 0.0, 'x0': None}
+    trace = {'broken': {}, 'lag': 0.0}
 
     def watch(projection):
         physics_, task = projection.physics, projection.task
