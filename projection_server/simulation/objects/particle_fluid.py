@@ -11,8 +11,9 @@ Heat (:mod:`projection_server.simulation.batter.heat`): each particle starts at 
 fluid's ``temperature`` (or its own, ``temperatures``), warms on a heated pancake maker at
 ``pan_heat_rate`` and exchanges heat with the particles it touches at
 ``conduction_rate`` (and with the air at ``air_cooling_rate``); from
-``setting_temperature`` on it is set (and takes ``set_friction``, a cooked crust's, if
-given), and touching set particles bond with ``bond_strength``. ``bonds`` (index pairs) are
+``setting_temperature`` on it is set (takes ``set_friction``, a cooked crust's, if
+given, and has no rolling or spinning friction), and touching set particles bond with
+``bond_strength``. ``bonds`` (index pairs) are
 bonds made when the world is built."""
 
 from __future__ import annotations
