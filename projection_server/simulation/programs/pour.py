@@ -5,13 +5,17 @@ at the height of its pose in the scenario, with its pouring lip (the rim on the 
 the maker's centre shifted by ``position`` metres along y. It tilts about the lip (about +y,
 so its opening turns towards +x) at :data:`TILT_RATE` up to ``angle`` (0 = upright, pi/2 = on
 its side), holds that angle for ``time`` seconds, tilts back upright at the same rate and the
-particles settle. While it tilts, the lip is lowered as far as the cup's lowest point keeps its
-initial clearance above the maker, but not below :data:`POUR_HEIGHT` (a person pours batter
-from a few centimetres above the pan). The cup is moved kinematically: a fixed constraint
-pulls it to the commanded pose at every physics step (no arm is simulated), so that it moves
-the same smooth path at every time step. Once the cup is upright again the pour ends as soon
-as the batter has come to rest (every particle slower than :data:`REST_SPEED`), after
-:data:`AFTER` seconds at the latest. Nothing in the program looks at where the batter is.
+particles settle. It speeds up and slows down at :data:`TILT_ACCEL`, so that it comes to rest
+at ``angle`` and upright rather than stopping at once. The paper gives no rate; 1 rad/s is the
+second of the two coefficients fitted to its Table II as a whole, beside the mix's surface
+tension (bench/batter_fit.py, bench/RESULTS.md 2026-11-28). While it tilts, the lip is
+lowered as far as the cup's lowest point keeps its initial clearance above the maker, but not
+below :data:`POUR_HEIGHT` (a person pours batter from a few centimetres above the pan). The
+cup is moved kinematically: a fixed constraint pulls it to the commanded pose at every physics
+step (no arm is simulated), so that it moves the same smooth path at every time step. Once the
+cup is upright again the pour ends as soon as the batter has come to rest (every particle
+slower than :data:`REST_SPEED`), after :data:`AFTER` seconds at the latest. Nothing in the
+program looks at where the batter is.
 """
 
 from __future__ import annotations
@@ -30,7 +34,8 @@ if TYPE_CHECKING:
 
 __all__ = ['PROGRAM', 'Pour']
 
-TILT_RATE = 2.0          # rad/s, tilting and tilting back (about 1 s to 2 rad, like a person)
+TILT_RATE = 1.0          # rad/s, tilting and tilting back (about 2 s to 2 rad: a careful pour)
+TILT_ACCEL = 8.0         # rad/s^2, speeding up to TILT_RATE and slowing down from it
 SETTLE = 0.3             # s for the fluid to settle in the upright cup before tilting
 AFTER = 0.8              # s at most for the poured fluid to settle after the cup is upright
 REST_SPEED = 0.01        # m/s: the batter is at rest when no particle moves faster
@@ -87,9 +92,9 @@ class Pour:
 
     def _schedule(self, params: dict[str, float]) -> None:
         self.angle, self.hold = params['angle'], params['time']
-        self.tilted = SETTLE + self.angle / TILT_RATE
+        self.tilted = SETTLE + tilt_duration(self.angle)
         self.released = self.tilted + self.hold
-        self.upright = self.released + self.angle / TILT_RATE
+        self.upright = self.released + tilt_duration(self.angle)
         self.duration = self.upright + AFTER
 
     def tilt(self, t: float) -> float:
@@ -156,16 +161,41 @@ class Pour:
             maxForce=CUP_HOLD_FORCE)
 
 
+def tilt_duration(angle: float) -> float:
+    """Seconds to tilt by ``angle`` [rad] from rest to rest."""
+    if angle <= TILT_RATE ** 2 / TILT_ACCEL:   # too short to reach TILT_RATE
+        return 2.0 * math.sqrt(angle / TILT_ACCEL)
+    return angle / TILT_RATE + TILT_RATE / TILT_ACCEL
+
+
+def tilted_by(angle: float, s: float) -> float:
+    """The angle [rad] turned ``s`` seconds into a tilt by ``angle`` from rest to rest: speed
+    up at TILT_ACCEL to at most TILT_RATE, go on, and slow down at TILT_ACCEL to stop at
+    ``angle`` (a cup stopped or turned back at once jerks the batter at its lip)."""
+    total = tilt_duration(angle)
+    if s <= 0.0:
+        return 0.0
+    if s >= total:
+        return angle
+    ramp = min(TILT_RATE, TILT_ACCEL * total / 2) / TILT_ACCEL
+    if s <= ramp:
+        return TILT_ACCEL * s * s / 2
+    if s <= total - ramp:
+        return TILT_ACCEL * ramp * (s - ramp / 2)
+    left = total - s
+    return angle - TILT_ACCEL * left * left / 2
+
+
 def tilt(angle: float, hold: float, t: float) -> float:
     """The tilt [rad] commanded at time ``t`` [s] of a pour to ``angle`` held ``hold`` s."""
     if t <= SETTLE:
         return 0.0
-    tilted = SETTLE + angle / TILT_RATE
+    tilted = SETTLE + tilt_duration(angle)
     if t <= tilted:
-        return (t - SETTLE) * TILT_RATE
+        return tilted_by(angle, t - SETTLE)
     if t <= tilted + hold:
         return angle
-    return max(angle - (t - (tilted + hold)) * TILT_RATE, 0.0)
+    return angle - tilted_by(angle, t - tilted - hold)
 
 
 PROGRAM = register(Program(
