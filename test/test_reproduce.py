@@ -240,3 +240,12 @@ def test_a_comparison_summary_without_shown_cells_counts_the_differing_ones():
     comparison = Comparison(16, 18, differing, TABLE_I_GRASPING)
     assert comparison.summary(limit=0) == '16/18 cells agree; differs at 2 cells'
     assert comparison.summary(limit=1).endswith('; and 1 more')
+
+
+def test_only_takes_comma_separated_experiments_and_refuses_an_unknown_one(capsys):
+    from projection_server.reproduce.__main__ import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(['--only', 'table1,tabel2', '--no-frames'])
+    assert exit_.value.code == 2
+    assert 'no experiment tabel2' in capsys.readouterr().err

@@ -38,7 +38,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--server', default='/projection_server',
                         help='the node whose services to use (default: %(default)s)')
     parser.add_argument('--only', action='append', metavar='TABLE',
-                        help='run only these experiments (table1, table2, table3, table3_poured, table3_cooked)')
+                        help='run only these experiments, repeated or comma-separated (table1, '
+                             'table2, table3, table3_poured, table3_cooked)')
     parser.add_argument('--timeout', type=float, default=900.0,
                         help='seconds one solution (projection) may take')
     parser.add_argument('--no-frames', action='store_true', help='skip rendering key frames')
@@ -53,7 +54,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     from projection_server.reproduce.experiments import EXPERIMENTS
     from projection_server.reproduce.run import reproduce
 
-    experiments = [e for e in EXPERIMENTS if not args.only or e.key in args.only]
+    only = {key for item in args.only or () for key in item.split(',') if key}
+    unknown = only - {e.key for e in EXPERIMENTS}
+    if unknown:
+        parser.error(f'--only: no experiment {", ".join(sorted(unknown))} (there are '
+                     f'{", ".join(e.key for e in EXPERIMENTS)})')
+    experiments = [e for e in EXPERIMENTS if not only or e.key in only]
     args.out.mkdir(parents=True, exist_ok=True)
     rclpy.init()
     try:
