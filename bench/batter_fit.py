@@ -4,9 +4,11 @@ the mix's properties, in this process's workers (no node), against the paper's.
     tools/with_env.sh python bench/batter_fit.py --set surface_tension=0.5,1,2
     tools/with_env.sh python bench/batter_fit.py --set surface_tension=1 --set viscosity=20 \\
         --angles 1.84
+    tools/with_env.sh python bench/batter_fit.py --set surface_tension=0.25,0.4 --tilt-rate 1,2
 
 Each ``--set NAME=V1,V2,..`` is a property of ``pancake_mix1`` and its candidate values; every
-combination of the candidates runs the pours of ``--angles`` (default: all three) at the
+combination of the candidates (and of ``--tilt-rate``'s rates of the pour, its
+second coefficient) runs the pours of ``--angles`` (default: all three) at the
 paper's positions and times, at the pour's own physics, in ``--workers`` processes. Printed
 per combination: the pan counts beside the paper's, how many are within 2x of the paper's (a
 count of at most 2 particles counts as 2), the Spearman correlation of the pan counts with the
@@ -51,8 +53,12 @@ def spearman(a: list[float], b: list[float]) -> float:
 
 
 def _pour(args):
-    scenario, params, physics = args
+    scenario, params, physics, *rate = args
     from projection_server.settings import load_settings
+    from projection_server.simulation.programs import pour
+
+    if rate and rate[0] is not None:   # the pour's tilt rate, the fit's second coefficient
+        pour.TILT_RATE = rate[0]
     from projection_server.simulation import Job
     from projection_server.workers.run import run_projection
 
@@ -72,6 +78,9 @@ def main() -> int:
     parser.add_argument('--set', action='append', default=[],
                         help='NAME=V1,V2,...: candidate values of a property of the mix')
     parser.add_argument('--angles', default='1.84,1.99,2.14')
+    parser.add_argument('--tilt-rate', default=None,
+                        help='R1,R2,...: candidate tilt rates of the pour [rad/s] (default: '
+                             "the program's)")
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--physics', default='{}', help='settings over the pour\'s (JSON)')
     args = parser.parse_args()
@@ -91,21 +100,23 @@ def main() -> int:
              for a in angles]
     print(f'batter fit: {len(cells)} pours per combination, angles {angles}, '
           f'physics {physics or "of the pour"}; {harness.machine()}', flush=True)
+    rates = [float(r) for r in args.tilt_rate.split(',')] if args.tilt_rate else [None]
     with get_context('forkserver').Pool(args.workers) as pool:
-        for combination in itertools.product(*candidates):
+        for rate, combination in itertools.product(rates, itertools.product(*candidates)):
             scenario = harness.kb_scenario('pouring')
             harness.find_entity(scenario['entities'], 'pancake_mix1')['properties'].update(
                 zip(names, combination))
             start = time.monotonic()
             results = pool.map(_pour, [(scenario, {'position': p, 'time': t, 'angle': a},
-                                        physics) for p, t, a in cells])
+                                        physics, rate) for p, t, a in cells])
             wall = time.monotonic() - start
             ours = [r[0]['pan'] or 0 for r in results]
             theirs = [paper.TABLE_II[c]['pan'] for c in cells]
             good = sum(within_2x(o, t) for o, t in zip(ours, theirs))
             agree = sum(_cell_agrees(m, paper.TABLE_II[c][m.column], r[0][m.column])
                         for c, r in zip(cells, results) for m in TABLE_II_POURING.measures)
-            print(f'\n{dict(zip(names, combination)) or "the mix of the knowledge base"}: '
+            print(f'\n{dict(zip(names, combination)) or "the mix of the knowledge base"}'
+                  f'{"" if rate is None else f", tilt rate {rate} rad/s"}: '
                   f'{good}/{len(cells)} pan counts within 2x, Spearman '
                   f'{spearman(ours, theirs):.3f}, {agree}/{5 * len(cells)} cells agree; '
                   f'CPU {sum(r[1] for r in results):.1f} s, wall {wall:.1f} s', flush=True)
