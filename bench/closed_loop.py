@@ -1,7 +1,8 @@
 """The paper's promise on paired worlds: does projecting first reduce the undesired outcomes?
 
-    tools/with_env.sh python bench/closed_loop.py                 # grasp and push, ~45 min
+    tools/with_env.sh python bench/closed_loop.py                 # grasp, push and lift
     tools/with_env.sh python bench/closed_loop.py --only grasp --eggs 50 --truth wider,belief
+    tools/with_env.sh python bench/closed_loop.py --only lift --truth wider,belief
     tools/with_env.sh python bench/closed_loop.py --only pour     # not in the default run
 
 Kunze et al. (IROS 2011) say that projecting a plan before acting "reduces the number of
@@ -68,6 +69,23 @@ it falls. The displacement pulls the nominal optimum to the edge of the fall: a 
   twice best_parametrization/8's default, which left the search at the range's start with
   seed 1, bench/RESULTS.md 2026-11-28), certified on the fresh worlds that can prove the
   chance (29 for 0.9, one-sided Clopper-Pearson).
+
+Lift (``--lifts``, default 100): "lift the egg as fast as it goes without losing it".
+grasp_object(force ``--lift-force`` 3 N, position 0, lift_time) in scenario grasping, its
+lift of 0.1 m (minimum jerk) taking lift_time in range(0.1, 1.0) s. Belief and truth as for
+the grasp. Undesired: a slip or a break; utility: the lift's mean speed 0.1 m / lift_time
+if the egg is lifted whole, 0 otherwise. Why a cliff: the pads hold the egg through the
+lift iff 2 mu F >= m (g + 5.77 x 0.1 m / lift_time^2) (textbook, and the node at 240 and
+960 Hz alike: test_physics_service), so the quicker the lift, the more friction it needs;
+the nominal optimum is the quickest lift that holds an egg of the belief's middle friction
+(0.3: about 0.17 s), at the edge of the slip of every egg with less.
+  (a): the program's default, 1 s.
+  (b): best_parametrization/8 in the nominal world maximising max_speed(egg1) (the egg's
+  peak speed, 1.875 x 0.1 m / lift_time when held) subject to no slip and no break,
+  max_projections(``--lift-nominal-budget``, 32).
+  (c): the same with samples(``--lift-samples``, 73) and chance(``--lift-chance``, 0.95)
+  (73 worlds are the fewest that can prove 0.95: a feasible trial held the egg in all 73),
+  max_projections(``--lift-budget``, 1168: 16 trials), certified on 59 fresh worlds.
 
 Pour (``--only pour``, ``--pours``, default 20; not in the default run: a fine pour takes
 40-60 s of a worker, so 20 pours of three policies take about 25 min on 2 workers and a
@@ -366,6 +384,45 @@ def push_policies(task: Task, args: Any) -> list[Policy]:
                    + (f' max {args.push_budget}' if args.push_budget else ''), belief)]
 
 
+# Lift --------------------------------------------------------------------------------------
+LIFT_OK = OK_GRASP
+
+
+def lift_task(force: float) -> Task:
+    return Task(
+        name='lift', names=('lift_time',),
+        belief=(('egg1', 'friction', 'uniform(0.2, 0.4)'),
+                ('egg1', 'breaking_force', 'normal(10, 1.5)')),
+        truth=(('egg1', 'friction', 'uniform(0.15, 0.45)'),
+               ('egg1', 'breaking_force', 'normal(9, 2)')),
+        set_up=lambda props: ', '.join(['copy_scenario(grasping, S)']
+                                       + properties_goals(props)),
+        program=lambda choice: 'grasp_object', physics_program='grasp_object',
+        params=lambda c: (f'[(Force, force, [{force!r}]), (Position, position, [0.0]), '
+                          f'(Lift, lift_time, [{c[0]!r}])]'),
+        measures=('( occurs(slip, _, TL) -> Slip = 1 ; Slip = 0 ), '
+                  '( occurs(break, _, TL) -> Break = 1 ; Break = 0 ), '
+                  'Undesired is max(Slip, Break), Utility is (1 - Undesired) * 0.1 / Lift, '
+                  'quantity(max_speed(egg1), Speed, TL)'),
+        extra=(('Slip', 'slips'), ('Break', 'breaks'), ('Speed', 'peak speed m/s')),
+        settings=f'grasp at {force:g} N at the centre, lift 0.1 m in lift_time in '
+                 'range(0.1, 1.0) s')
+
+
+def lift_policies(task: Task, args: Any) -> list[Policy]:
+    searched = (f'[(Force, force, [{args.lift_force!r}]), (Position, position, [0.0]), '
+                '(Lift, lift_time, range(0.1, 1.0))]')
+    nominal = search_decide(task, f'max_projections({args.lift_nominal_budget}), seed({{seed}})',
+                            LIFT_OK, 'max_speed(egg1)', searched, 'Lift')
+    belief = search_decide(task, f'samples({args.lift_samples}), chance({args.lift_chance}), '
+                           f'max_projections({args.lift_budget}), seed({{seed}})',
+                           LIFT_OK, 'max_speed(egg1)', searched, 'Lift')
+    return [Policy('a', '(a) default', None, (1.0,)),
+            Policy('b', '(b) nominal search', nominal),
+            Policy('c', f'(c) samples({args.lift_samples}) chance({args.lift_chance}) '
+                   f'max {args.lift_budget}', belief)]
+
+
 def pour_task(position: float) -> Task:
     return Task(
         name='pour', names=('time',),
@@ -549,6 +606,7 @@ def main() -> int:
     parser = harness.arguments(__doc__, seed=1)
     parser.add_argument('--eggs', type=int, default=200, help='true eggs grasped (200)')
     parser.add_argument('--pushes', type=int, default=100, help='true boxes pushed (100)')
+    parser.add_argument('--lifts', type=int, default=100, help='true eggs lifted (100)')
     parser.add_argument('--pours', type=int, default=20, help='true pours (20)')
     parser.add_argument('--repeat', type=int, default=3,
                         help='timed decisions of (b) and (c), grasp and push (3)')
@@ -565,6 +623,16 @@ def main() -> int:
                              'default, 8 x --push-samples)')
     parser.add_argument('--push-nominal-budget', type=int, default=32,
                         help="(b)'s max_projections (32)")
+    parser.add_argument('--lift-force', type=float, default=3.0,
+                        help="the lift's grip force, N (3)")
+    parser.add_argument('--lift-samples', type=int, default=73,
+                        help="(c)'s worlds of the belief per lift trial (73)")
+    parser.add_argument('--lift-chance', type=float, default=0.95,
+                        help="(c)'s chance that the egg is lifted whole (0.95)")
+    parser.add_argument('--lift-budget', type=int, default=1168,
+                        help="(c)'s max_projections (1168: 16 trials of 73 worlds)")
+    parser.add_argument('--lift-nominal-budget', type=int, default=32,
+                        help="(b)'s max_projections (32)")
     parser.add_argument('--pour-samples', type=int, default=16,
                         help="(c)'s worlds of the belief per pour trial (16)")
     parser.add_argument('--pour-position', type=float, default=-0.06,
@@ -574,7 +642,7 @@ def main() -> int:
     parser.add_argument('--truth', default='wider',
                         help='the true objects: wider (the task\'s truth), belief, or both '
                              'comma-separated (wider)')
-    parser.add_argument('--only', choices=('grasp', 'push', 'pour'),
+    parser.add_argument('--only', choices=('grasp', 'push', 'lift', 'pour'),
                         help='one task (the pour runs only so)')
     parser.add_argument('--workers', type=int, default=2)
     args = parser.parse_args()
@@ -601,8 +669,10 @@ def main() -> int:
                     harness.client() as client:
                 bench = Bench(client, bag_dir, 3600.0)
                 grasp, push, pour = grasp_task(), push_task(), pour_task(args.pour_position)
+                lift = lift_task(args.lift_force)
                 plan = [(grasp, lambda: grasp_policies(bench, grasp), args.eggs, args.repeat),
                         (push, lambda: push_policies(push, args), args.pushes, args.repeat),
+                        (lift, lambda: lift_policies(lift, args), args.lifts, args.repeat),
                         (pour, lambda: pour_policies(pour, args), args.pours,
                          args.pour_repeat)]
                 for task, policies, objects, repeat in plan:

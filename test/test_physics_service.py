@@ -65,6 +65,28 @@ def test_a_bad_option_is_an_error_naming_it(call, options, kind, words):
     assert all(w in text.replace(' ', '') for w in words), text
 
 
+def test_a_quicker_lift_needs_more_friction_at_every_rate(call):
+    # Textbook: two pads of 3 N hold the 60 g egg through a minimum-jerk lift of 0.1 m in T
+    # seconds iff friction >= m (g + 0.577 / T^2) / 6 N: 0.356 at T = 0.15 s, 0.242 at
+    # 0.2 s, 0.134 at 0.4 s. A peak speed of 1.875 x 0.1 m / T, when it holds.
+    r, sols = ask(call, '''
+        member(Friction-Lift, [0.25-0.15, 0.25-0.4, 0.35-0.2]), member(Rate, [240, 960]),
+        copy_scenario(grasping, S), scenario_set_property(S, egg1, friction, Friction),
+        make_projection(S, grasp_object, [(_, force, [3]), (_, lift_time, [Lift])],
+                        [physics(_{rate_hz: Rate})], T),
+        ( occurs(slip, _, T) -> Outcome = slip ; Outcome = ok ),
+        quantity(max_speed(egg1), Speed, T),
+        delete_scenario(S)''')
+    assert r.ok, r.message
+    assert [(s['Friction'], s['Lift'], s['Rate'], s['Outcome']) for s in sols] == [
+        (0.25, 0.15, 240, 'slip'), (0.25, 0.15, 960, 'slip'),
+        (0.25, 0.4, 240, 'ok'), (0.25, 0.4, 960, 'ok'),
+        (0.35, 0.2, 240, 'ok'), (0.35, 0.2, 960, 'ok')]
+    for s in sols:
+        if s['Outcome'] == 'ok':
+            assert s['Speed'] == pytest.approx(1.875 * 0.1 / s['Lift'], rel=0.05), s
+
+
 def test_whether_a_2_n_grasp_holds_the_egg_does_not_depend_on_the_rate(call):
     # Textbook: two pads of 2 N hold the 60 g egg through the lift from friction 0.156 on.
     # A gantry that jumped to a new target at every control step shook the egg loose below

@@ -315,11 +315,17 @@ class Rules:
         rows += [['max_load', [name], value] for name, value in sorted(loads.items())]
         rows += [['load_limit', [name], value] for name, value in sorted(limits.items())]
         for obj in self.bodies:
-            poses = [x.poses for x in self.samples if obj in x.poses]
+            seen = [(x.t, x.poses) for x in self.samples if obj in x.poses]
+            poses = [p for _, p in seen]
             heights = [float(p[obj][0][2]) for p in poses]
             first, last = poses[0][obj][0], poses[-1][obj][0]
             rows.append(['lift_height', [obj], max(heights) - heights[0]])
             rows.append(['displacement', [obj], float(np.linalg.norm(last - first))])
+            if len(seen) > 1:
+                xyz = np.array([p[obj][0] for p in poses], dtype=float)
+                dt = np.diff([t for t, _ in seen])
+                speed = np.linalg.norm(np.diff(xyz, axis=0), axis=1) / np.maximum(dt, 1e-12)
+                rows.append(['max_speed', [obj], float(speed.max())])
             rows.append(['final_pose', [obj], [[float(v) for v in last],
                                                list(poses[-1].quaternion(obj))]])
         return rows

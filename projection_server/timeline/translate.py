@@ -86,7 +86,9 @@ that brings temperatures or bonds: :mod:`projection_server.simulation.batter.hea
 
 Quantities: ``max_load(O)`` [N] and ``load_limit(O)`` [N] of modelled objects; of every body
 O, ``lift_height(O)`` [m] (highest minus initial height), ``displacement(O)`` [m] (the
-distance from its first to its last sample's position) and ``final_pose(O)``, its world pose
+distance from its first to its last sample's position), ``max_speed(O)`` [m/s] (the
+largest distance between two successive samples' positions over their time apart) and
+``final_pose(O)``, its world pose
 ``[[X, Y, Z], [QX, QY, QZ, QW]]`` [m] at the last sample (a unit quaternion). Of particle
 fluids (at the last sample, see :mod:`projection_server.timeline.pouring`):
 ``particles_on(M)`` per pancake maker M, ``particles_in(C)`` per cup C,

@@ -140,7 +140,7 @@ def test_the_timeline_has_the_contract_shape(project, make_scenario):
         assert isinstance(name, str) and all(isinstance(a, str) for a in args)
         assert 0.0 <= start <= end <= timeline['meta']['duration']
     assert timeline['meta']['program'] == 'grasp_object'
-    assert timeline['meta']['params'] == {'force': 5.0, 'position': 0.0}
+    assert timeline['meta']['params'] == {'force': 5.0, 'position': 0.0, 'lift_time': 1.0}
     fluents = {(f[0], tuple(f[1])) for f in timeline['fluents']}
     assert {('contact', ('egg1', 'table1')), ('supported_by', ('egg1', 'table1')),
             ('on', ('egg1', 'table1')), ('in_gripper', ('egg1',)),

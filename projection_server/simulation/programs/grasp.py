@@ -1,10 +1,13 @@
-"""``grasp_object(force, position)``: grasp the egg lying on the table and lift it.
+"""``grasp_object(force, position, lift_time)``: grasp the egg on the table and lift it.
 
 The gripper approaches horizontally along the egg's long axis with open fingers, the pads'
 centre ``position`` metres from the egg's centre along that axis, closes its fingers with the
-grip ``force`` of each finger, waits, lifts the egg by 0.1 m and holds it there. Nothing in
-the program looks at the outcome: whether the egg is held, slips or breaks is decided by the
-contacts' friction and by the egg's object model.
+grip ``force`` of each finger, waits, lifts the egg by 0.1 m in ``lift_time`` seconds (a
+minimum-jerk motion, peak acceleration 5.77 x 0.1 m / lift_time^2) and holds it there.
+Nothing in the program looks at the outcome: whether the egg is held, slips or breaks is
+decided by the contacts' friction and by the egg's object model. The pads hold an egg of mass
+m with friction mu through the lift iff 2 mu force >= m (g + a): a quicker lift needs more
+friction.
 """
 
 from __future__ import annotations
@@ -29,10 +32,10 @@ APPROACH_DISTANCE = 0.09   # m, pre-grasp offset of the tool along the approach 
 OPEN_WIDTH = 0.07          # m between the pads while approaching
 CLOSING_SPEED = 0.03       # m/s of each finger
 LIFT_HEIGHT = 0.10         # m
-# Phase ends [s]: settle, approach, close, squeeze, lift, hold.
-SETTLED, APPROACHED, CLOSED, SQUEEZED, LIFTED, HELD = 0.2, 0.8, 1.5, 1.8, 2.8, 3.8
-PHASES = (('settle', SETTLED), ('approach', APPROACHED), ('close', CLOSED),
-          ('squeeze', SQUEEZED), ('lift', LIFTED), ('hold', HELD))
+# Phase ends [s]: settle, approach, close, squeeze; the lift takes ``lift_time``, the hold
+# HOLD_TIME after it.
+SETTLED, APPROACHED, CLOSED, SQUEEZED = 0.2, 0.8, 1.5, 1.8
+HOLD_TIME = 1.0
 
 
 def _min_jerk(t: float, start: float, end: float) -> tuple[float, float]:
@@ -46,8 +49,6 @@ def _min_jerk(t: float, start: float, end: float) -> tuple[float, float]:
 class GraspObject:
     """The task: one grasp of the scenario's first egg with its first robot's gripper."""
 
-    duration = HELD
-
     def __init__(self, physics: Physics, scenario: Scenario, params: dict[str, float],
                  rng: np.random.Generator):
         target = next(scenario.of_class(TARGET_CLASS), None)
@@ -56,6 +57,10 @@ class GraspObject:
             raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                                   f'grasp_object needs an {TARGET_CLASS} and a robot')
         self.force = params['force']
+        self.lifted = SQUEEZED + params['lift_time']
+        self.duration = self.lifted + HOLD_TIME
+        self.phases = (('settle', SETTLED), ('approach', APPROACHED), ('close', CLOSED),
+                       ('squeeze', SQUEEZED), ('lift', self.lifted), ('hold', self.duration))
         self.gripper: Gripper = physics.grippers[robot.name]
         self._physics, self._robot, self._target = physics, robot.name, target.name
         settle(physics)   # the egg lies at rest before the gripper is placed beside it
@@ -80,7 +85,7 @@ class GraspObject:
         """The gantry's targets of the next physics step (after each step)."""
         t = (self._physics.step_count + 1) / self._rate
         approach, approach_rate = _min_jerk(t, SETTLED, APPROACHED)
-        lift, lift_rate = _min_jerk(t, SQUEEZED, LIFTED)
+        lift, lift_rate = _min_jerk(t, SQUEEZED, self.lifted)
         target = (APPROACH_DISTANCE * (1.0 - approach), LIFT_HEIGHT * lift,
                   -APPROACH_DISTANCE * approach_rate, LIFT_HEIGHT * lift_rate)
         if target != self._commanded:   # at rest between the motions: nothing to send
@@ -92,9 +97,9 @@ class GraspObject:
             self.gripper.close(self.force, CLOSING_SPEED)
 
     def state(self) -> list[tuple[str, int, str, str]]:
-        """``(robot, -1, phase, egg)``: the phase under way (:data:`PHASES`)."""
+        """``(robot, -1, phase, egg)``: the phase under way (``phases``)."""
         t = self._physics.time
-        phase = next((name for name, end in PHASES if t < end), PHASES[-1][0])
+        phase = next((name for name, end in self.phases if t < end), 'hold')
         return [(self._robot, -1, phase, self._target)]
 
 
@@ -105,6 +110,8 @@ PROGRAM = register(Program(
         Parameter('position', 'm', -0.04, 0.04, 0.0,
                   'centre of the gripper pads relative to the centre of the egg, '
                   'along its long axis'),
+        Parameter('lift_time', 's', 0.1, 10.0, 1.0,
+                  'duration of the lift by 0.1 m (minimum jerk)'),
     ),
     create=GraspObject,
     doc=__doc__.splitlines()[0],
