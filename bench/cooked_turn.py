@@ -212,10 +212,12 @@ def main() -> None:
             cooked = cook(poured, _physics(c), args.time, bags, changes)
             print(f'cook {c}: set_fraction {cooked["set_fraction"]:.2f}, '
                   f'{len(cooked["bonds"])} bonds, {cooked["cpu"]:.0f} CPU s', flush=True)
+            turned = bags / f'cooked{_tag(_physics(c))}'   # each cook's turns, own bags
+            turned.mkdir()
             for t in args.turn:
                 outcomes = []
                 for angle in angles:
-                    r = turn(cooked, angle, _physics(t), bags, turn_changes)
+                    r = turn(cooked, angle, _physics(t), turned, turn_changes)
                     outcomes.append('ok' if r['ok'] else 'fail')
                     b = r['broken']
                     print(f'  turn {t} {angle}: {outcomes[-1]:4} bonds {r["bonds0"]}->'
