@@ -18,6 +18,12 @@ With ``--physics fine,own`` the same eggs are also grasped at the program's own 
 the prediction's: that run's calibration is the statistics' alone, so the gap between the
 two is the projection's physics against the finer one.
 
+With ``--refine N`` the cells whose prediction from ``--samples`` worlds lies strictly between
+0 and 1 are predicted again from N worlds of the same seed (the first ``--samples`` of them
+come from the bag cache): a p estimated from few worlds carries its own sampling error,
+which the noise floor below does not count, so the cells where the outcome is uncertain
+need many worlds before their ECE can be compared with the floor.
+
 Printed, per execution physics: per cell the prediction and the executed frequency; the
 Brier score (mean of
 (p - y)^2 over the executions); the expected calibration error over 10 equal-width bins of
@@ -132,7 +138,9 @@ def report(args, kind: str, physics: dict, predicted: dict, executed: list, seco
         args.png.parent.mkdir(parents=True, exist_ok=True)
         reliability(p, y, floor, args.png,
                     f'33 grasp cells x {args.eggs} fresh eggs at {kind} physics\n'
-                    f'predicted from {args.samples} belief worlds; ECE {error:.3f} (floor '
+                    f'predicted from {args.samples} belief worlds'
+                    + (f' ({args.refine} where uncertain)' if args.refine > args.samples else '')
+                    + f'; ECE {error:.3f} (floor '
                     f'95th pct {np.percentile(floor, 95):.3f}), Brier {brier:.3f}')
         say(f'  reliability diagram: {args.png}')
 
@@ -141,6 +149,9 @@ def main() -> int:
     parser = harness.arguments(__doc__, seed=11)
     parser.add_argument('--samples', type=int, default=30,
                         help='worlds of the belief per cell for the prediction (30)')
+    parser.add_argument('--refine', type=int, default=0,
+                        help='worlds of the belief for the cells predicted strictly between '
+                             '0 and 1 (0: none)')
     parser.add_argument('--eggs', type=int, default=16,
                         help='fresh true eggs per cell, executed at 4x physics (16)')
     parser.add_argument('--truth-seed', type=int, default=2027,
@@ -181,6 +192,18 @@ def main() -> int:
                         f'copy_scenario(grasping, S), {BELIEF}, outcome_probability(S, '
                         f'grasp_object, {grid}, [samples({args.samples}), seed({args.seed})],'
                         f' TL, {OK}, Pr)', timeout=3600.0, max_solutions=10_000)}
+                uncertain = sorted(c for c, v in predicted.items() if 0.0 < v < 1.0)
+                if args.refine > args.samples and uncertain:
+                    for force, position in uncertain:
+                        (s,) = client.all(
+                            f'copy_scenario(grasping, S), {BELIEF}, outcome_probability(S, '
+                            f'grasp_object, [(F, force, [{force}]), (P, position, '
+                            f'[{position}])], [samples({args.refine}), seed({args.seed})], '
+                            f'TL, {OK}, Pr)', timeout=3600.0, max_solutions=10)
+                        say(f'  refined {force:g} N {position:+.2f} m: '
+                            f'{predicted[(force, position)]:.3f} from {args.samples} worlds, '
+                            f'{dict(s["Pr"].pairs)["p"]:.3f} from {args.refine}')
+                        predicted[(force, position)] = dict(s['Pr'].pairs)['p']
                 predicting = time.perf_counter() - t0
                 runs = {}
                 for kind in args.physics.split(','):
@@ -202,7 +225,9 @@ def main() -> int:
                     runs[kind] = (chosen, executed, time.perf_counter() - t1)
     finally:
         rclpy.try_shutdown()
-    say(f'  predictions: {len(predicted)} cells x {args.samples} worlds in {predicting:.0f} s')
+    say(f'  predictions: {len(predicted)} cells x {args.samples} worlds'
+        + (f', the uncertain ones x {args.refine}' if args.refine > args.samples else '')
+        + f' in {predicting:.0f} s')
     for index, (kind, (chosen, executed, seconds)) in enumerate(runs.items()):
         report(args, kind, chosen, predicted, executed, seconds, index == 0)
     say(f'calibration: {time.perf_counter() - started:.0f} s in all; {harness.machine()}')
