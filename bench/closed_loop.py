@@ -106,7 +106,8 @@ design's argument, not yet a measurement: the pour has not been run on it.
 
 With the defaults the grasp and the push take about 45 minutes on 2 cores shared with
 another benchmark (load 5-7; the grasp's nine robust decisions are most of it, 1.5-2.5 min
-each), less on a quiet machine (bench/RESULTS.md, 2026-11-28).
+each), less on a quiet machine; the lift about 6 minutes a decision seed, of which (c)'s
+decision is 2.5-3 (bench/RESULTS.md, 2026-11-28).
 """
 
 from __future__ import annotations
@@ -244,15 +245,20 @@ POSITIONS = (-0.02, 0.0, 0.02)
 GRASP_GRID = f'[(Force, force, {list(FORCES)}), (Position, position, {list(POSITIONS)})]'
 
 
+EGG_BELIEF = (('egg1', 'friction', 'uniform(0.2, 0.4)'),
+              ('egg1', 'breaking_force', 'normal(10, 1.5)'))
+EGG_TRUTH = (('egg1', 'friction', 'uniform(0.15, 0.45)'),
+             ('egg1', 'breaking_force', 'normal(9, 2)'))
+
+
+def egg_set_up(props: Properties) -> str:
+    return ', '.join(['copy_scenario(grasping, S)'] + properties_goals(props))
+
+
 def grasp_task() -> Task:
     return Task(
         name='grasp', names=('force', 'position'),
-        belief=(('egg1', 'friction', 'uniform(0.2, 0.4)'),
-                ('egg1', 'breaking_force', 'normal(10, 1.5)')),
-        truth=(('egg1', 'friction', 'uniform(0.15, 0.45)'),
-               ('egg1', 'breaking_force', 'normal(9, 2)')),
-        set_up=lambda props: ', '.join(['copy_scenario(grasping, S)']
-                                       + properties_goals(props)),
+        belief=EGG_BELIEF, truth=EGG_TRUTH, set_up=egg_set_up,
         program=lambda choice: 'grasp_object', physics_program='grasp_object',
         params=lambda c: f'[(Force, force, [{c[0]}]), (Position, position, [{c[1]}])]',
         measures=('( occurs(slip, _, TL) -> Slip = 1 ; Slip = 0 ), '
@@ -391,12 +397,7 @@ LIFT_OK = OK_GRASP
 def lift_task(force: float) -> Task:
     return Task(
         name='lift', names=('lift_time',),
-        belief=(('egg1', 'friction', 'uniform(0.2, 0.4)'),
-                ('egg1', 'breaking_force', 'normal(10, 1.5)')),
-        truth=(('egg1', 'friction', 'uniform(0.15, 0.45)'),
-               ('egg1', 'breaking_force', 'normal(9, 2)')),
-        set_up=lambda props: ', '.join(['copy_scenario(grasping, S)']
-                                       + properties_goals(props)),
+        belief=EGG_BELIEF, truth=EGG_TRUTH, set_up=egg_set_up,
         program=lambda choice: 'grasp_object', physics_program='grasp_object',
         params=lambda c: (f'[(Force, force, [{force!r}]), (Position, position, [0.0]), '
                           f'(Lift, lift_time, [{c[0]!r}])]'),
@@ -609,7 +610,7 @@ def main() -> int:
     parser.add_argument('--lifts', type=int, default=100, help='true eggs lifted (100)')
     parser.add_argument('--pours', type=int, default=20, help='true pours (20)')
     parser.add_argument('--repeat', type=int, default=3,
-                        help='timed decisions of (b) and (c), grasp and push (3)')
+                        help='timed decisions of (b) and (c), grasp, push and lift (3)')
     parser.add_argument('--pour-repeat', type=int, default=1,
                         help='timed decisions of (b) and (c), pour (1)')
     parser.add_argument('--push-default', type=float, default=0.1,
