@@ -37,7 +37,7 @@ def turn(angle: float, physics: dict, bags: Path) -> dict:
     rows: dict[str, list[tuple[float, float, float, float]]] = {p: [] for p in PHASES}
     simulator = Simulator()
     try:
-        bag = bags / f'turn_{physics["rate_hz"]}_{angle}'
+        bag = bags / f'turn_{physics["rate_hz"]}_{physics["solver_iterations"]}_{angle}'
         with BagWriter(bag) as writer:
             projection = Projection(simulator.client, job, load_settings(), writer)
             sim, task = projection.physics, projection.task
