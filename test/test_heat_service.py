@@ -128,9 +128,9 @@ def test_the_pancake_cooked_from_the_poured_batter_turns_where_the_papers_did(ca
 @pytest.mark.parametrize('angle, outcome', [
     (0.1, 'ok'),
     pytest.param(0.9, 'fail', marks=pytest.mark.xfail(strict=True, reason=(
-        'not converged: the pancake of the 1 rad/s pour (202 particles) breaks 47 bonds and '
-        'fails at 240 Hz, and flips whole at 480 Hz, where the spatula trails its path by '
-        '15.7 mm instead of 21.9 mm (bench/RESULTS.md, 2026-11-28)'))),
+        'not converged: the pancake of the 1 rad/s pour breaks bonds and fails at 240 Hz, '
+        'flips whole at 480 Hz and fails at 960 Hz, with the spatula on its path or not '
+        '(bench/RESULTS.md, 2026-11-28)'))),
 ])
 def test_the_cooked_pancakes_turn_is_the_same_at_a_2x_finer_step(call, angle, outcome):
     """The cooked pancake of the test above, turned where it turns (0.1 rad) and where it

@@ -111,6 +111,10 @@ class TurnPancake:
         c.resetBasePositionAndOrientation(self._spatula, centre, quat)
         self._constraint = c.createConstraint(
             self._spatula, -1, -1, -1, c.JOINT_FIXED, (0, 0, 0), (0, 0, 0), centre)
+        # PyBullet gives a multibody's fixed constraint the engine's erp (0.2 a step), not
+        # this one: the blade trails its path by up to 22 / 16 / 13 mm at 240 / 480 / 960 Hz.
+        # A blade kept on its path makes Table III differ between these steps, where this one
+        # gives the paper's at all three (bench/RESULTS.md, 2026-11-28, bench/spatula_lag.py).
         self._erp = min(1.0, HOLD_RATE / physics.settings.physics.rate_hz)
         c.changeConstraint(self._constraint, centre, quat, maxForce=HOLD_FORCE, erp=self._erp)
 
