@@ -189,7 +189,7 @@ class BatterHeat:
             both = self.set[i] & self.set[j]
             if both.any():
                 i, j = i[both], j[both]
-                new = ~np.isin(i * self._n + j, self._ever, assume_unique=False)
+                new = self._never_bonded(i * self._n + j)
                 if new.any():
                     self._bond(i[new], j[new], x)
 
@@ -232,6 +232,14 @@ class BatterHeat:
         self._constraints += constraints
         self._ever = np.union1d(self._ever, i * self._n + j)
         self.formed += len(constraints)
+
+    def _never_bonded(self, key: np.ndarray) -> np.ndarray:
+        """Which of the pairs ``key`` (``i * n + j``) never bonded: looked up in the sorted
+        keys of those that did."""
+        ever = self._ever
+        if not len(ever):
+            return np.ones(len(key), dtype=bool)
+        return ever[np.minimum(np.searchsorted(ever, key), len(ever) - 1)] != key
 
     def _break_stretched(self, x: np.ndarray) -> None:
         d = x[self._bj] - x[self._bi]
