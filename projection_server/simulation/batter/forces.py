@@ -77,7 +77,8 @@ class BatterForces:
             ends += (i, j)
             parts += (pull, -pull)
         if viscous:
-            drag = (self._momentum * -np.expm1(-self._rate * weight))[:, None] * (v[j] - v[i])
+            relative = v.take(j, axis=0) - v.take(i, axis=0)
+            drag = (self._momentum * -np.expm1(-self._rate * weight))[:, None] * relative
             ends += (i, j)
             parts += (drag, -drag)
         force = _sums(ends, parts, len(x))

@@ -242,7 +242,7 @@ class BatterHeat:
         return ever[np.minimum(np.searchsorted(ever, key), len(ever) - 1)] != key
 
     def _break_stretched(self, x: np.ndarray) -> None:
-        d = x[self._bj] - x[self._bi]
+        d = x.take(self._bj, axis=0) - x.take(self._bi, axis=0)
         stretched = np.einsum('ij,ij->i', d, d) > self._break * self._break
         if not stretched.any():
             return

@@ -46,12 +46,12 @@ def pairs(positions: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray,
     own = np.repeat(np.tile(np.arange(len(_HALF_SHELL)) == 0, n), counts)
     keep = ~own | (i < j)
     i, j = i[keep], j[keep]
-    d = positions[j] - positions[i]
+    d = positions.take(j, axis=0) - positions.take(i, axis=0)
     close = np.einsum('ij,ij->i', d, d) < cutoff * cutoff
-    i, j, d = i[close], j[close], d[close]
+    i, j, d = i[close], j[close], d.compress(close, axis=0)
     swap = i > j
     i[swap], j[swap] = j[swap], i[swap].copy()
-    d[swap] = -d[swap]
+    np.negative(d, out=d, where=swap[:, None])
     return i, j, d
 
 
@@ -92,10 +92,10 @@ class NeighbourLists:
             self._measure(positions)
         subset = self._subsets[cutoff]
         if subset is None:
-            close = self._squares < cutoff * cutoff
+            close = np.flatnonzero(self._squares < cutoff * cutoff)
         else:
             close = subset[self._squares[subset] < cutoff * cutoff]
-        return self._i[close], self._j[close], self._d[close]
+        return self._i[close], self._j[close], self._d.take(close, axis=0)
 
     def _measure(self, positions: np.ndarray) -> None:
         origin = self._origin
@@ -103,7 +103,7 @@ class NeighbourLists:
                 or np.einsum('ij,ij->i', moved := positions - origin, moved).max()
                 > (self.skin / 2) ** 2):
             self._rebuild(positions)
-        self._d = d = positions[self._j] - positions[self._i]
+        self._d = d = positions.take(self._j, axis=0) - positions.take(self._i, axis=0)
         self._squares = np.einsum('ij,ij->i', d, d)
         self._positions = positions
 
@@ -125,10 +125,10 @@ class NeighbourLists:
         near = np.flatnonzero(squares < reach * reach)
         i, j = self._i[near], self._j[near]
         cell = np.floor(positions / reach).astype(np.int64)
-        offset = cell[j] - cell[i]
+        offset = cell.take(j, axis=0) - cell.take(i, axis=0)
         found = (np.abs(offset) <= 1).all(axis=1)
         near, i, j = near[found], i[found], j[found]
-        code = (offset[found] + 1) @ _CODE
+        code = (offset.compress(found, axis=0) + 1) @ _CODE
         forward = _FORWARD[code]
         finder, other = np.where(forward, i, j), np.where(forward, j, i)
         return near[np.lexsort((other, _SHELL_INDEX[code], finder))]
