@@ -7,10 +7,11 @@ that the pour leaves on the pan cooks there, with this tree's and the earlier ho
 
     tools/with_env.sh python bench/batter_cost.py --repeat 5
     tools/with_env.sh python bench/batter_cost.py --angle 1.99 --time 0.5 --old 7b89c6c
-    tools/with_env.sh python bench/batter_cost.py --cook 0
+    tools/with_env.sh python bench/batter_cost.py --cook 0 --whole
 
 Each pour is bare stepping of the pour's world and task as a projection builds them (control,
-step hooks and object models; no monitor, no bag), to its end (the batter at rest). The
+step hooks and object models; no monitor, no bag), to its end (the batter at rest), or with
+``--whole`` the whole projection (its monitor samples and writes a bag). The
 variant ``old`` builds the same world with the batter modules (forces, heat, neighbours) of
 revision ``--old``, loaded from a copy; ``old`` and ``now`` must step alike (the same steps,
 the same particle positions at the end). Printed: per variant the median CPU seconds of a
@@ -54,41 +55,51 @@ def old_batter(revision: str, into: Path) -> tuple[type, type]:
     return forces.BatterForces, heat.BatterHeat
 
 
-def run(client, job, settings, hooks, detach=False):
+def run(client, job, settings, hooks, detach=False, whole=False):
     """(CPU s, steps, CPU s in the forces' hooks, in the heat's, final positions) of one pour
-    (or cook) to its end; the world built with ``hooks`` (forces' and heat's classes), and
-    with ``detach`` stepped without them."""
+    (or cook) to its end; the world built with ``hooks`` (forces' and heat's classes), with
+    ``detach`` stepped without them, with ``whole`` a whole projection (its monitor samples
+    and writes a bag)."""
+    from projection_server.bags import BagWriter
     from projection_server.simulation.objects import particle_fluid
+    from projection_server.simulation.runner import Projection
 
     with contextlib.ExitStack() as stack:
         stack.enter_context(mock.patch.object(particle_fluid, 'BatterForces', hooks[0]))
         stack.enter_context(mock.patch.object(particle_fluid, 'BatterHeat', hooks[1]))
-        projection = harness.bare_projection(client, job, settings)
-    physics, task = projection.physics, projection.task
-    settings = physics.settings   # the program's and the job's own, as a worker has them
-    spent = [0.0, 0.0]
-    for k, hook in enumerate(physics.step_hooks):
-        for which, cls in enumerate(hooks):
-            if isinstance(hook, cls):
-                def timed(hook=hook, which=which):
-                    t = time.process_time()
-                    hook()
-                    spent[which] += time.process_time() - t
-                physics.step_hooks[k] = timed
-    if detach:
-        physics.step_hooks = [hook for hook in physics.step_hooks
-                              if getattr(hook, '__name__', '') != 'timed']
-    control, log = settings.control.steps_per_control, settings.control.steps_per_log
-    finished = getattr(task, 'finished', None)
-    end = math.ceil(task.duration * settings.physics.rate_hz - 1e-9)
-    start = time.process_time()
-    while physics.step_count < end:
-        if physics.step_count % control == 0:
-            task.control(physics)
-        physics.step()
-        if finished is not None and physics.step_count % log == 0 and finished(physics):
-            break
-    cpu = time.process_time() - start
+        if whole:
+            bag = Path(stack.enter_context(tempfile.TemporaryDirectory())) / 'bag'
+            projection = Projection(client, job, settings,
+                                    stack.enter_context(BagWriter(bag)))
+        else:
+            projection = harness.bare_projection(client, job, settings)
+        physics, task = projection.physics, projection.task
+        settings = physics.settings   # the program's and the job's own, as a worker has them
+        spent = [0.0, 0.0]
+        for k, hook in enumerate(physics.step_hooks):
+            for which, cls in enumerate(hooks):
+                if isinstance(hook, cls):
+                    def timed(hook=hook, which=which):
+                        t = time.process_time()
+                        hook()
+                        spent[which] += time.process_time() - t
+                    physics.step_hooks[k] = timed
+        if detach:
+            physics.step_hooks = [hook for hook in physics.step_hooks
+                                  if getattr(hook, '__name__', '') != 'timed']
+        control, log = settings.control.steps_per_control, settings.control.steps_per_log
+        finished = getattr(task, 'finished', None)
+        end = math.ceil(task.duration * settings.physics.rate_hz - 1e-9)
+        start = time.process_time()
+        if whole:
+            projection.advance()
+        while physics.step_count < end and not whole:
+            if physics.step_count % control == 0:
+                task.control(physics)
+            physics.step()
+            if finished is not None and physics.step_count % log == 0 and finished(physics):
+                break
+        cpu = time.process_time() - start
     ids = [body for fluid in physics.fluids.values() for body in fluid.body_ids]
     at = [client.getBasePositionAndOrientation(body)[0] for body in ids]
     return cpu, physics.step_count, spent[0], spent[1], at
@@ -130,6 +141,8 @@ def main() -> int:
     parser.add_argument('--position', type=float, default=0.0)
     parser.add_argument('--cook', type=float, default=4.0,
                         help='seconds that the poured batter then cooks (0: no cook)')
+    parser.add_argument('--whole', action='store_true',
+                        help='each pour a whole projection: its monitor samples, writes a bag')
     parser.add_argument('--old', default='7b89c6c',
                         help='the revision of the batter modules to compare with')
     args = parser.parse_args()
@@ -158,13 +171,15 @@ def main() -> int:
     print(f'batter cost: pour {params}, {s.rate_hz} Hz, {s.solver_iterations} iterations; '
           f"the knowledge base's mix: surface_tension {p['surface_tension']}, "
           f"viscosity {p['viscosity']}; old: the batter modules of {args.old}; "
+          f"{'whole projections' if args.whole else 'bare stepping'}; "
           f'{args.repeat} rounds; {harness.machine()}', flush=True)
     simulator = Simulator()
     rows = {name: [] for name in variants}
     ends = {}
     for round_ in range(args.repeat):
         for name, (job, hooks, detach) in variants.items():
-            cpu, steps, forces, heat, at = run(simulator.client, job, settings, hooks, detach)
+            cpu, steps, forces, heat, at = run(simulator.client, job, settings, hooks, detach,
+                                               args.whole)
             rows[name].append((cpu, steps, forces, heat))
             ends.setdefault(name, (steps, at))
             print(f'  round {round_ + 1} {name:8s} {cpu:6.2f} s CPU, {steps} steps, '
@@ -180,7 +195,8 @@ def main() -> int:
         for round_ in range(args.repeat):
             for name in ('cook now', 'cook old'):
                 job, hooks, detach = variants[name]
-                cpu, steps, forces, heat, at = run(simulator.client, job, settings, hooks)
+                cpu, steps, forces, heat, at = run(simulator.client, job, settings, hooks,
+                                                   whole=args.whole)
                 rows[name].append((cpu, steps, forces, heat))
                 ends.setdefault(name, (steps, at))
                 print(f'  round {round_ + 1} {name:8s} {cpu:6.2f} s CPU, {steps} steps, '
