@@ -11,7 +11,8 @@ import pybullet
 import pytest
 
 from projection_server.settings import load_settings
-from projection_server.simulation.batter import BatterForces, NeighbourList, pairs
+from projection_server.simulation.batter import (BatterForces, NeighbourList, NeighbourLists,
+                                                 pairs)
 from projection_server.simulation.batter.forces import RUPTURE_GAP
 from projection_server.simulation.physics import Body, Fluid, Physics, bound_client
 
@@ -41,6 +42,20 @@ def test_the_verlet_list_misses_no_pair_as_points_move():
         i, j, _ = neighbours(x)
         assert set(zip(i.tolist(), j.tolist())) == brute_force(x, 0.012)
     assert 1 < neighbours.rebuilds < 60   # rebuilt only when something moved far enough
+
+
+def test_lists_sharing_their_verlet_lists_give_what_lists_of_their_own_do_to_the_bit():
+    rng = np.random.default_rng(5)
+    x = rng.random((300, 3)) * 0.05
+    shared = NeighbourLists(0.0024)
+    lists = [(NeighbourList(cutoff, 0.0024, shared), NeighbourList(cutoff, 0.0024))
+             for cutoff in (0.012, 0.0101, 0.006)]
+    for _ in range(40):
+        x = x + rng.normal(0, 0.0003, x.shape)
+        for drawn, own in lists:
+            for a, b in zip(drawn(x), own(x)):
+                assert a.dtype == b.dtype and np.array_equal(a, b)   # the same order too
+    assert shared.rebuilds == lists[0][1].rebuilds > 1
 
 
 def world(rate_hz=240, gravity=0.0):

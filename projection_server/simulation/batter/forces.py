@@ -20,7 +20,9 @@ A particle stands for a blob of batter, and two blobs that touch share a liquid 
 
 Per step: one batched read of the particles' positions (and velocities, for viscosity;
 :meth:`Physics.particle_state`), numpy over the pairs within the rupture distance
-(a Verlet list, :class:`~.neighbours.NeighbourList`), one ``applyExternalForce`` per particle that has a neighbour.
+(a Verlet list, :class:`~.neighbours.NeighbourList`, shared with the batter's heat:
+:meth:`Physics.neighbour_list`), one ``bincount`` of the pairs' forces and one
+``applyExternalForce`` per particle that has a neighbour.
 """
 
 from __future__ import annotations
@@ -30,8 +32,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from projection_server.simulation.batter.neighbours import NeighbourList
-
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
 
@@ -39,6 +39,7 @@ __all__ = ['BatterForces', 'KISSING', 'RUPTURE_GAP']
 
 RUPTURE_GAP = 0.5   # a bridge breaks at a gap of this many particle radii
 KISSING = 12        # touching neighbours of a particle in a dense packing
+_AXES = np.arange(3)
 
 
 class BatterForces:
@@ -52,7 +53,7 @@ class BatterForces:
         self._ids = physics.fluids[name].body_ids
         self._contact = 2 * radius
         self._cutoff = (2 + RUPTURE_GAP) * radius
-        self._neighbours = NeighbourList(self._cutoff, skin=RUPTURE_GAP * radius)
+        self._neighbours = physics.neighbour_list(name, self._cutoff, RUPTURE_GAP * radius)
         self._bridge = math.pi * radius * surface_tension          # N at contact
         self._dt = dt = 1.0 / physics.settings.physics.rate_hz
         self._rate = 2 * viscosity * dt / KISSING   # a touching pair's decay exponent a step
@@ -70,15 +71,31 @@ class BatterForces:
             return
         distance = np.sqrt(np.einsum('ij,ij->i', d, d))
         weight = np.clip((self._cutoff - distance) / (self._cutoff - self._contact), 0.0, 1.0)
-        force = np.zeros((len(x), 3))
+        ends, parts = [], []
         if self._bridge > 0:
             pull = (self._bridge * weight / np.maximum(distance, 1e-9))[:, None] * d
-            np.add.at(force, i, pull)
-            np.add.at(force, j, -pull)
+            ends += (i, j)
+            parts += (pull, -pull)
         if viscous:
-            drag = (self._momentum * -np.expm1(-self._rate * weight))[:, None] * (v[j] - v[i])
-            np.add.at(force, i, drag)
-            np.add.at(force, j, -drag)
+            relative = v.take(j, axis=0) - v.take(i, axis=0)
+            drag = (self._momentum * -np.expm1(-self._rate * weight))[:, None] * relative
+            ends += (i, j)
+            parts += (drag, -drag)
+        force = _sums(ends, parts, len(x))
+        touched = np.zeros(len(x), dtype=bool)
+        touched[i] = True
+        touched[j] = True
         apply, frame, ids = self._apply, self._frame, self._ids
-        for k in np.unique(np.concatenate((i, j))).tolist():
-            apply(ids[k], -1, force[k].tolist(), x[k].tolist(), frame)
+        force, at = force.tolist(), x.tolist()
+        for k in np.flatnonzero(touched).tolist():
+            apply(ids[k], -1, force[k], at[k], frame)
+
+
+def _sums(ends: list[np.ndarray], parts: list[np.ndarray], n: int) -> np.ndarray:
+    """The (n, 3) sums of the rows of ``parts`` over the particles ``ends`` name, each sum
+    taken in the order the rows come (one ``bincount`` over all three axes)."""
+    if not ends:
+        return np.zeros((n, 3))
+    end = np.concatenate(ends)
+    slot = (3 * end)[:, None] + _AXES
+    return np.bincount(slot.ravel(), np.concatenate(parts).ravel(), 3 * n).reshape(n, 3)

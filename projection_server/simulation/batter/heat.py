@@ -47,8 +47,9 @@ at the end of another (the fluid's ``positions``, ``temperatures`` and ``bonds``
 are made again when the world is built.
 
 Cost per step: one read of the positions (shared with the batter's forces and the monitor,
-:meth:`Physics.particle_state`), numpy over the touching pairs, and PyBullet calls only
-for bonds that form or break.
+:meth:`Physics.particle_state`), numpy over the touching pairs (drawn from the Verlet list
+that the batter's forces use, :meth:`Physics.neighbour_list`), and PyBullet calls only for
+bonds that form or break.
 """
 
 from __future__ import annotations
@@ -59,7 +60,6 @@ from typing import Any, NamedTuple, TYPE_CHECKING
 import numpy as np
 
 from projection_server.simulation.batter.forces import KISSING
-from projection_server.simulation.batter.neighbours import NeighbourList
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -145,7 +145,7 @@ class BatterHeat:
         self._air = -math.expm1(-air_cooling_rate * dt)
         self._exchange = min(-math.expm1(-2.0 * conduction_rate * dt) / 2.0, 1.0 / KISSING)
         contact = 2.0 * radius * (1.0 + TOUCH_TOLERANCE)
-        self._neighbours = NeighbourList(contact, skin=0.5 * radius)
+        self._neighbours = physics.neighbour_list(name, contact, 0.5 * radius)
         self._break = (2.0 + BREAK_GAP) * radius
         self._strength = bond_strength
         self._n = n
@@ -189,7 +189,7 @@ class BatterHeat:
             both = self.set[i] & self.set[j]
             if both.any():
                 i, j = i[both], j[both]
-                new = ~np.isin(i * self._n + j, self._ever, assume_unique=False)
+                new = self._never_bonded(i * self._n + j)
                 if new.any():
                     self._bond(i[new], j[new], x)
 
@@ -233,8 +233,16 @@ class BatterHeat:
         self._ever = np.union1d(self._ever, i * self._n + j)
         self.formed += len(constraints)
 
+    def _never_bonded(self, key: np.ndarray) -> np.ndarray:
+        """Which of the pairs ``key`` (``i * n + j``) never bonded: looked up in the sorted
+        keys of those that did."""
+        ever = self._ever
+        if not len(ever):
+            return np.ones(len(key), dtype=bool)
+        return ever[np.minimum(np.searchsorted(ever, key), len(ever) - 1)] != key
+
     def _break_stretched(self, x: np.ndarray) -> None:
-        d = x[self._bj] - x[self._bi]
+        d = x.take(self._bj, axis=0) - x.take(self._bi, axis=0)
         stretched = np.einsum('ij,ij->i', d, d) > self._break * self._break
         if not stretched.any():
             return

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ['NeighbourList', 'pairs']
+__all__ = ['NeighbourList', 'NeighbourLists', 'pairs']
 
 # The cell itself and 13 of its 26 neighbours: every unordered pair of cells once.
 _HALF_SHELL = np.array([(0, 0, 0)] + [
@@ -46,12 +46,12 @@ def pairs(positions: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray,
     own = np.repeat(np.tile(np.arange(len(_HALF_SHELL)) == 0, n), counts)
     keep = ~own | (i < j)
     i, j = i[keep], j[keep]
-    d = positions[j] - positions[i]
+    d = positions.take(j, axis=0) - positions.take(i, axis=0)
     close = np.einsum('ij,ij->i', d, d) < cutoff * cutoff
-    i, j, d = i[close], j[close], d[close]
+    i, j, d = i[close], j[close], d.compress(close, axis=0)
     swap = i > j
     i[swap], j[swap] = j[swap], i[swap].copy()
-    d[swap] = -d[swap]
+    np.negative(d, out=d, where=swap[:, None])
     return i, j, d
 
 
@@ -60,28 +60,120 @@ def _none() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return empty, empty, np.zeros((0, 3))
 
 
-class NeighbourList:
-    """The pairs closer than ``cutoff``, step after step, from a Verlet list: the pairs
-    closer than ``cutoff + skin`` are found with :func:`pairs` only when some point has
-    moved more than ``skin / 2`` since they were; in between, only those candidates'
-    distances are measured. Exact: no pair closer than ``cutoff`` is ever missed."""
+class NeighbourLists:
+    """Verlet lists of one set of points for several cutoffs with one ``skin``, sharing
+    their rebuilds and their distances: the pairs closer than the largest cutoff + skin are
+    found with :func:`pairs` only when some point has moved more than ``skin / 2`` since they
+    were, and each step their distances are measured once, however many lists ask. A smaller
+    cutoff's candidates are a subset of them, in the order :func:`pairs` gives its own: each
+    list gives what a list of its own would, to the bit."""
 
-    def __init__(self, cutoff: float, skin: float):
-        self.cutoff, self.skin = cutoff, skin
+    def __init__(self, skin: float):
+        self.skin = skin
         self.rebuilds = 0
+        self._cutoffs: list[float] = []
         self._origin: np.ndarray | None = None
+        self._positions: np.ndarray | None = None   # those measured last (kept: compared by id)
         self._i = self._j = np.zeros(0, dtype=np.int64)
+        self._d = np.zeros((0, 3))
+        self._squares = np.zeros(0)
+        self._subsets: dict[float, np.ndarray | None] = {}   # None: all the candidates
 
-    def __call__(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:func:`pairs` of ``positions`` within the cutoff."""
+    def add(self, cutoff: float) -> None:
+        """Keep the pairs closer than ``cutoff`` too (from the next rebuild on)."""
+        if cutoff not in self._cutoffs:
+            self._cutoffs.append(cutoff)
+            self._origin = None
+
+    def within(self, cutoff: float, positions: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`pairs` of ``positions`` within ``cutoff`` (one that was added)."""
+        if positions is not self._positions:
+            self._measure(positions)
+        subset = self._subsets[cutoff]
+        if subset is None:
+            close = np.flatnonzero(self._squares < cutoff * cutoff)
+        else:
+            close = subset[self._squares[subset] < cutoff * cutoff]
+        return self._i[close], self._j[close], self._d.take(close, axis=0)
+
+    def _measure(self, positions: np.ndarray) -> None:
         origin = self._origin
         if (origin is None or origin.shape != positions.shape
                 or np.einsum('ij,ij->i', moved := positions - origin, moved).max()
                 > (self.skin / 2) ** 2):
-            self._i, self._j, _ = pairs(positions, self.cutoff + self.skin)
-            self._origin = positions.copy()
-            self.rebuilds += 1
-        i, j = self._i, self._j
-        d = positions[j] - positions[i]
-        close = np.einsum('ij,ij->i', d, d) < self.cutoff * self.cutoff
-        return i[close], j[close], d[close]
+            self._rebuild(positions)
+        self._d = d = positions.take(self._j, axis=0) - positions.take(self._i, axis=0)
+        self._squares = np.einsum('ij,ij->i', d, d)
+        self._positions = positions
+
+    def _rebuild(self, positions: np.ndarray) -> None:
+        top = max(self._cutoffs)
+        self._i, self._j, d = pairs(positions, top + self.skin)
+        squares = np.einsum('ij,ij->i', d, d)
+        self._subsets = {cutoff: None if cutoff == top
+                         else self._in_order(positions, squares, cutoff + self.skin)
+                         for cutoff in self._cutoffs}
+        self._origin = positions.copy()
+        self.rebuilds += 1
+
+    def _in_order(self, positions: np.ndarray, squares: np.ndarray,
+                  reach: float) -> np.ndarray:
+        """The indices of the candidates that ``pairs(positions, reach)`` finds, in its
+        order: by the point whose half shell of cells holds the other, that cell's offset,
+        the other point."""
+        near = np.flatnonzero(squares < reach * reach)
+        i, j = self._i[near], self._j[near]
+        cell = np.floor(positions / reach).astype(np.int64)
+        offset = cell.take(j, axis=0) - cell.take(i, axis=0)
+        found = (np.abs(offset) <= 1).all(axis=1)
+        near, i, j = near[found], i[found], j[found]
+        code = (offset.compress(found, axis=0) + 1) @ _CODE
+        forward = _FORWARD[code]
+        finder, other = np.where(forward, i, j), np.where(forward, j, i)
+        return near[np.lexsort((other, _SHELL_INDEX[code], finder))]
+
+
+def _shell_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each cell offset (coded ``(offset + 1) @ code``): whether it is in the half shell
+    (else its opposite is), and the index in the half shell of it or its opposite."""
+    code = np.array([9, 3, 1], dtype=np.int64)
+    index = {tuple(o): k for k, o in enumerate(_HALF_SHELL.tolist())}
+    forward = np.zeros(27, dtype=bool)
+    shell = np.zeros(27, dtype=np.int64)
+    for c in range(27):
+        o = (c // 9 - 1, c // 3 % 3 - 1, c % 3 - 1)
+        forward[c] = o in index
+        shell[c] = index[o] if o in index else index[tuple(-k for k in o)]
+    return code, forward, shell
+
+
+_CODE, _FORWARD, _SHELL_INDEX = _shell_tables()
+
+
+class NeighbourList:
+    """The pairs closer than ``cutoff``, step after step, from a Verlet list: the pairs
+    closer than ``cutoff + skin`` are found with :func:`pairs` only when some point has
+    moved more than ``skin / 2`` since they were; in between, only those candidates'
+    distances are measured. Exact: no pair closer than ``cutoff`` is ever missed.
+
+    With ``shared``, the list is drawn from those Verlet lists of the same points (and
+    skin), with the same result."""
+
+    def __init__(self, cutoff: float, skin: float, shared: NeighbourLists | None = None):
+        if shared is None:
+            shared = NeighbourLists(skin)
+        elif shared.skin != skin:
+            raise ValueError(f'a list of skin {skin} drawn from lists of skin {shared.skin}')
+        shared.add(cutoff)
+        self.cutoff, self.skin = cutoff, skin
+        self._shared = shared
+
+    @property
+    def rebuilds(self) -> int:
+        """How often its candidates were found again."""
+        return self._shared.rebuilds
+
+    def __call__(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`pairs` of ``positions`` within the cutoff."""
+        return self._shared.within(self.cutoff, positions)
