@@ -8,6 +8,7 @@ that the pour leaves on the pan cooks there, with this tree's and the earlier ho
     tools/with_env.sh python bench/batter_cost.py --repeat 5
     tools/with_env.sh python bench/batter_cost.py --angle 1.99 --time 0.5 --old 7b89c6c
     tools/with_env.sh python bench/batter_cost.py --cook 0 --whole
+    tools/with_env.sh python bench/batter_cost.py --cook 0 --whole --before
 
 Each pour is bare stepping of the pour's world and task as a projection builds them (control,
 step hooks and object models; no monitor, no bag), to its end (the batter at rest), or with
@@ -16,7 +17,9 @@ variant ``old`` builds the same world with the batter modules (forces, heat, nei
 revision ``--old``, loaded from a copy; ``old`` and ``now`` must step alike (the same steps,
 the same particle positions at the end). Printed: per variant the median CPU seconds of a
 pour, its steps and milliseconds per step, the medians of the forces' and the heat's hooks'
-own CPU per step, and the ratios of the medians.
+own CPU per step, and the ratios of the medians. With ``--before`` also the pour as it was
+before the batter cohered and heated (no batter hooks, the cup tilted at 2 rad/s without
+ramps): ``now / before`` is what the batter and the slower pour cost together.
 """
 
 from __future__ import annotations
@@ -55,16 +58,20 @@ def old_batter(revision: str, into: Path) -> tuple[type, type]:
     return forces.BatterForces, heat.BatterHeat
 
 
-def run(client, job, settings, hooks, detach=False, whole=False):
+def run(client, job, settings, hooks, detach=False, whole=False, motion=None):
     """(CPU s, steps, CPU s in the forces' hooks, in the heat's, final positions) of one pour
     (or cook) to its end; the world built with ``hooks`` (forces' and heat's classes), with
     ``detach`` stepped without them, with ``whole`` a whole projection (its monitor samples
-    and writes a bag)."""
+    and writes a bag); ``motion``: the pour program's constants to use instead (name:
+    value)."""
     from projection_server.bags import BagWriter
     from projection_server.simulation.objects import particle_fluid
+    from projection_server.simulation.programs import pour
     from projection_server.simulation.runner import Projection
 
     with contextlib.ExitStack() as stack:
+        for name, value in (motion or {}).items():
+            stack.enter_context(mock.patch.object(pour, name, value))
         stack.enter_context(mock.patch.object(particle_fluid, 'BatterForces', hooks[0]))
         stack.enter_context(mock.patch.object(particle_fluid, 'BatterHeat', hooks[1]))
         if whole:
@@ -143,6 +150,9 @@ def main() -> int:
                         help='seconds that the poured batter then cooks (0: no cook)')
     parser.add_argument('--whole', action='store_true',
                         help='each pour a whole projection: its monitor samples, writes a bag')
+    parser.add_argument('--before', action='store_true',
+                        help='also the pour as it was before the batter cohered and heated '
+                             '(no batter hooks, the cup at 2 rad/s without ramps)')
     parser.add_argument('--old', default='7b89c6c',
                         help='the revision of the batter modules to compare with')
     args = parser.parse_args()
@@ -161,10 +171,15 @@ def main() -> int:
     mix = harness.kb_scenario('pouring')
     harness.find_entity(mix['entities'], 'pancake_mix1')['properties'].update(
         surface_tension=0.0, viscosity=0.0)
-    # name: (job, hooks, hooks detached)
-    variants = {'now': (cohesive, now, False), 'old': (cohesive, old, False),
-                'without': (Job.checked(mix, 'pour', params), now, False),
-                'floor': (cohesive, now, True)}
+    # name: (job, hooks, hooks detached, the pour's motion)
+    variants = {'now': (cohesive, now, False, None), 'old': (cohesive, old, False, None),
+                'without': (Job.checked(mix, 'pour', params), now, False, None),
+                'floor': (cohesive, now, True, None)}
+    if args.before:
+        # The pour before the batter coheres or heats: no batter hooks, and the cup tilted at
+        # 2 rad/s with no ramps, as it was then.
+        variants['before'] = (Job.checked(mix, 'pour', params), now, True,
+                              {'TILT_RATE': 2.0, 'TILT_ACCEL': 1e9})
     p = harness.find_entity(harness.kb_scenario('pouring')['entities'],
                             'pancake_mix1')['properties']
     s = settings.physics
@@ -177,9 +192,9 @@ def main() -> int:
     rows = {name: [] for name in variants}
     ends = {}
     for round_ in range(args.repeat):
-        for name, (job, hooks, detach) in variants.items():
+        for name, (job, hooks, detach, motion) in variants.items():
             cpu, steps, forces, heat, at = run(simulator.client, job, settings, hooks, detach,
-                                               args.whole)
+                                               args.whole, motion)
             rows[name].append((cpu, steps, forces, heat))
             ends.setdefault(name, (steps, at))
             print(f'  round {round_ + 1} {name:8s} {cpu:6.2f} s CPU, {steps} steps, '
@@ -189,12 +204,13 @@ def main() -> int:
         cook, count = cooking(params, args.cook)
         print(f'cook: the {count} particles the pour leaves on the pan, {args.cook} s on it',
               flush=True)
-        variants.update({'cook now': (cook, now, False), 'cook old': (cook, old, False)})
+        variants.update({'cook now': (cook, now, False, None),
+                         'cook old': (cook, old, False, None)})
         for name in ('cook now', 'cook old'):
             rows[name] = []
         for round_ in range(args.repeat):
             for name in ('cook now', 'cook old'):
-                job, hooks, detach = variants[name]
+                job, hooks, detach, _ = variants[name]
                 cpu, steps, forces, heat, at = run(simulator.client, job, settings, hooks,
                                                    whole=args.whole)
                 rows[name].append((cpu, steps, forces, heat))
@@ -227,6 +243,10 @@ def main() -> int:
     for a in ('now', 'old'):
         print(f'{a} / without: pour {ratio(a, "without", 0)}, step {ratio(a, "without", 1)}; '
               f'{a} / floor: step {ratio(a, "floor", 1)}')
+    if args.before:
+        print(f'now / before: pour {ratio("now", "before", 0)}, step '
+              f'{ratio("now", "before", 1)} ({med["now"][0]:.2f} against '
+              f'{med["before"][0]:.2f} s a pour)')
     return 0
 
 
