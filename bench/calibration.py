@@ -140,7 +140,7 @@ def report(args, kind: str, physics: dict, predicted: dict, executed: list, seco
                     f'33 grasp cells x {args.eggs} fresh eggs at {kind} physics\n'
                     f'predicted from {args.samples} belief worlds'
                     + (f' ({args.refine} where uncertain)' if args.refine > args.samples else '')
-                    + f'; ECE {error:.3f} (floor '
+                    + f'\nECE {error:.3f} (floor '
                     f'95th pct {np.percentile(floor, 95):.3f}), Brier {brier:.3f}')
         say(f'  reliability diagram: {args.png}')
 
