@@ -137,7 +137,7 @@ def test_cached_pad_solutions_are_within_the_models_own_tolerance(client, make_s
     tolerance = abs(load_of_pad(9.0, 0.02) / fine_grid - 1.0)
     assert 0.005 < tolerance < 0.05
     scenario = make_scenario(breaking_force=None)
-    program = ('grasp_object', {'force': 9.0, 'position': 0.02})
+    program = ('grasp_object', {'force': 9.0, 'position': 0.02, 'lift_time': 1.0})
     cached, _ = shell_loads(client, scenario, load_settings(), 3.0, True, program)
     solved, _ = shell_loads(client, scenario, load_settings(), 3.0, False, program)
     held = solved > 1.0

@@ -25,7 +25,7 @@ def test_simulate_returns_a_bag_that_translates_to_a_timeline(bag_dir, make_scen
     assert path.startswith(str(bag_dir))
     timeline = translate_bag(path)
     assert ['grasp', ['egg1']] in [e[:2] for e in timeline['events']]
-    assert timeline['meta']['params'] == {'force': 5.0, 'position': 0.0}
+    assert timeline['meta']['params'] == {'force': 5.0, 'position': 0.0, 'lift_time': 1.0}
 
 
 def test_the_timeline_comes_from_the_worker_once_and_then_from_the_bag(

@@ -49,7 +49,7 @@ def test_parameter_that_is_not_a_number(make_scenario):
 
 def test_missing_parameters_take_their_defaults(make_scenario):
     job = Job.checked(make_scenario(), 'grasp_object', {'force': 3})
-    assert job.params == {'force': 3.0, 'position': 0.0}
+    assert job.params == {'force': 3.0, 'position': 0.0, 'lift_time': 1.0}
 
 
 def test_unknown_class_is_a_bad_scenario(make_scenario):
