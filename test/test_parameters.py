@@ -3,6 +3,7 @@ dump` holds every parameter, and its file starts the node again with the same va
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 import subprocess
@@ -65,8 +66,12 @@ def _request(node, srv_type, service, request):
 
 def _dump_with_ros2cli(node, name: str) -> dict:
     root = Path(__file__).resolve().parents[1]
-    prefix = Path(os.environ.get('PROJECTION_SERVER_CACHE',
-                                 Path.home() / '.cache' / 'projection_server')) / 'ros2cli'
+    # One install per checkout: its ros2 wrapper runs inside that checkout's tools/with_env.sh
+    # (and the install script is idempotent by its prefix alone).
+    checkout = hashlib.sha1(str(root).encode()).hexdigest()[:12]
+    cache = Path(os.environ.get('PROJECTION_SERVER_CACHE',
+                                Path.home() / '.cache' / 'projection_server'))
+    prefix = cache / f'ros2cli-{checkout}'
     subprocess.run(['bash', str(SHARED_ROS2CLI), str(prefix)], cwd=root, check=True,
                    capture_output=True, timeout=600)
     done = subprocess.run([str(prefix / 'ros2'), 'param', 'dump', '--no-daemon', '--timeout',
