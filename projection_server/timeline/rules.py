@@ -315,19 +315,16 @@ class Rules:
         rows += [['max_load', [name], value] for name, value in sorted(loads.items())]
         rows += [['load_limit', [name], value] for name, value in sorted(limits.items())]
         for obj in self.bodies:
-            seen = [(x.t, x.poses) for x in self.samples if obj in x.poses]
-            poses = [p for _, p in seen]
-            heights = [float(p[obj][0][2]) for p in poses]
-            first, last = poses[0][obj][0], poses[-1][obj][0]
-            rows.append(['lift_height', [obj], max(heights) - heights[0]])
-            rows.append(['displacement', [obj], float(np.linalg.norm(last - first))])
+            seen = [x for x in self.samples if obj in x.poses]
+            xyz = np.array([x.poses[obj][0] for x in seen], dtype=float)
+            rows.append(['lift_height', [obj], float(xyz[:, 2].max() - xyz[0, 2])])
+            rows.append(['displacement', [obj], float(np.linalg.norm(xyz[-1] - xyz[0]))])
             if len(seen) > 1:
-                xyz = np.array([p[obj][0] for p in poses], dtype=float)
-                dt = np.diff([t for t, _ in seen])
+                dt = np.diff([x.t for x in seen])
                 speed = np.linalg.norm(np.diff(xyz, axis=0), axis=1) / np.maximum(dt, 1e-12)
                 rows.append(['max_speed', [obj], float(speed.max())])
-            rows.append(['final_pose', [obj], [[float(v) for v in last],
-                                               list(poses[-1].quaternion(obj))]])
+            rows.append(['final_pose', [obj], [[float(v) for v in xyz[-1]],
+                                               list(seen[-1].poses.quaternion(obj))]])
         return rows
 
     # --- helpers ------------------------------------------------------------------------
