@@ -70,7 +70,9 @@ def _pour(args):
     cpu = time.process_time() - start
     values = {name: value for name, args_, value in timeline['quantities']
               if args_ in (['pancake_maker1'], ['pancake_mix1'])}
-    return {column: values.get(name) for column, name in COLUMNS.items()}, cpu
+    measures = {column: values.get(name) for column, name in COLUMNS.items()}
+    measures['positions'] = values.get('particles_on_positions')
+    return measures, cpu
 
 
 def main() -> int:
@@ -83,11 +85,13 @@ def main() -> int:
                              "the program's)")
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--physics', default='{}', help='settings over the pour\'s (JSON)')
+    parser.add_argument('--save', default=None,
+                        help='FILE: every pour\'s measures and pan positions, as JSON lines')
     args = parser.parse_args()
     import json
 
     from projection_server.reproduce import paper
-    from projection_server.reproduce.experiments import _cell_agrees, TABLE_II_POURING
+    from projection_server.reproduce.experiments import _cell_agrees, _show, TABLE_II_POURING
 
     physics = json.loads(args.physics)
     angles = [float(a) for a in args.angles.split(',')]
@@ -110,6 +114,12 @@ def main() -> int:
             results = pool.map(_pour, [(scenario, {'position': p, 'time': t, 'angle': a},
                                         physics, rate) for p, t, a in cells])
             wall = time.monotonic() - start
+            if args.save:
+                with open(args.save, 'a') as out:
+                    for c, r in zip(cells, results):
+                        out.write(json.dumps({'set': dict(zip(names, combination)),
+                                              'rate': rate, 'cell': c, 'cpu': r[1],
+                                              **r[0]}) + '\n')
             ours = [r[0]['pan'] or 0 for r in results]
             theirs = [paper.TABLE_II[c]['pan'] for c in cells]
             good = sum(within_2x(o, t) for o, t in zip(ours, theirs))
@@ -120,9 +130,19 @@ def main() -> int:
                   f'{good}/{len(cells)} pan counts within 2x, Spearman '
                   f'{spearman(ours, theirs):.3f}, {agree}/{5 * len(cells)} cells agree; '
                   f'CPU {sum(r[1] for r in results):.1f} s, wall {wall:.1f} s', flush=True)
+            by_column = {m.column: sum(_cell_agrees(m, paper.TABLE_II[c][m.column],
+                                                    r[0][m.column])
+                                       for c, r in zip(cells, results))
+                         for m in TABLE_II_POURING.measures}
+            print('  agree by measure: ' + ', '.join(f'{k} {v}/{len(cells)}'
+                                                     for k, v in by_column.items()))
             for (p, t, a), o, th, r in zip(cells, ours, theirs, results):
+                shown = ' '.join(
+                    f'{m.column} {_show(r[0][m.column])} ({_show(paper.TABLE_II[(p, t, a)][m.column])})'
+                    f'{"" if _cell_agrees(m, paper.TABLE_II[(p, t, a)][m.column], r[0][m.column]) else "*"}'
+                    for m in TABLE_II_POURING.measures[1:])
                 print(f'  {p:+.2f} m {t:.1f} s {a:.2f} rad: pan {o:4d} (paper {th:3d})'
-                      f'{"" if within_2x(o, th) else "  x"} spill {r[0]["spill"]}', flush=True)
+                      f'{"" if within_2x(o, th) else "  x"} {shown}', flush=True)
     return 0
 
 
