@@ -167,6 +167,18 @@ def test_many_particles_are_contracted_into_groups_of_about_equal_size():
     assert set(REFERENCE_LINKS) <= set(names) and names[0] == 'centre'
 
 
+def test_a_group_is_never_more_spheres_than_one_compound_keeps():
+    # 400 particles in 32 groups would be 12.5 each; a chain's groups grow unevenly. No
+    # group may exceed what PyBullet keeps of one compound (its extra spheres were dropped).
+    from projection_server.simulation.objects.common import MAX_COMPOUND_SHAPES
+    for points, joints in (_disc_of_particles(400),
+                           ([[0.01 * i, 0.0, 0.0] for i in range(300)],
+                            [[i - 1, i] for i in range(1, 300)])):
+        segments = particles_layout(points, joints, 0.008)
+        assert max(len(s.spheres) for s in segments) <= MAX_COMPOUND_SHAPES
+        assert sum(len(s.spheres) for s in segments) == len(points)
+
+
 # --- the world -------------------------------------------------------------------------
 def _world(scenario):
     import pybullet

@@ -5,16 +5,34 @@ from __future__ import annotations
 
 from typing import Any, TYPE_CHECKING
 
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.physics import Body, Shape
 
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['SPAWN_CLEARANCE', 'lift_clear', 'orientation', 'primitive', 'release_from_robots',
-           'surface']
+__all__ = ['MAX_COMPOUND_SHAPES', 'SPAWN_CLEARANCE', 'compound_shape', 'lift_clear',
+           'orientation', 'primitive', 'release_from_robots', 'surface']
 
 SPAWN_CLEARANCE = 1e-4   # m left between a spawned body and what it would otherwise touch
+# PyBullet keeps at most this many shapes of one createCollisionShapeArray and silently
+# drops the rest (MAX_COMPOUND_COLLISION_SHAPES of its shared-memory commands).
+MAX_COMPOUND_SHAPES = 16
+
+
+def compound_shape(client: Any, types: list[int], **arrays: Any) -> int:
+    """``createCollisionShapeArray(types, **arrays)``, refusing more shapes than PyBullet
+    keeps (a dropped shape is a hole in the body).
+
+    Raises:
+        ProjectionError: kind ``invalid_scenario`` for more than MAX_COMPOUND_SHAPES shapes.
+    """
+    if len(types) > MAX_COMPOUND_SHAPES:
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'a body of {len(types)} collision shapes: PyBullet keeps '
+                              f'only {MAX_COMPOUND_SHAPES} of one compound')
+    return client.createCollisionShapeArray(types, **arrays)
 
 
 def orientation(client: Any, entity: Entity) -> tuple[float, ...]:

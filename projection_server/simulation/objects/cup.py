@@ -9,7 +9,8 @@ import math
 from typing import Any, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
-from projection_server.simulation.objects.common import orientation, surface
+from projection_server.simulation.objects.common import (compound_shape, MAX_COMPOUND_SHAPES,
+                                                         orientation, surface)
 from projection_server.simulation.objects.registry import (FRACTION, NONNEGATIVE, ObjectClass,
                                                            POSITIVE, Property, register,
                                                            REQUIRED)
@@ -21,7 +22,9 @@ if TYPE_CHECKING:
 
 __all__ = ['CUP', 'CUP_SEGMENTS']
 
-CUP_SEGMENTS = 16        # wall boxes of a cup
+# Wall boxes of a cup: with its bottom, as many shapes as PyBullet keeps in one compound
+# (with 16 boxes it dropped the last, and batter ran out of the slot it left).
+CUP_SEGMENTS = MAX_COMPOUND_SHAPES - 1
 
 
 def build(physics: Physics, entity: Entity) -> None:
@@ -48,8 +51,8 @@ def build(physics: Physics, entity: Entity) -> None:
         lengths.append(0.0)
         positions.append([mid * math.cos(phi), mid * math.sin(phi), 0.0])
         orientations.append(list(c.getQuaternionFromEuler((0.0, 0.0, phi))))
-    shape = c.createCollisionShapeArray(
-        types, radii=radii, halfExtents=extents, lengths=lengths,
+    shape = compound_shape(
+        c, types, radii=radii, halfExtents=extents, lengths=lengths,
         collisionFramePositions=positions, collisionFrameOrientations=orientations)
     body = c.createMultiBody(p['mass'], shape, -1, entity.pose.xyz, orientation(c, entity))
     surface(c, body, p)

@@ -46,6 +46,7 @@ import numpy as np
 
 from projection_server.bags import REFERENCE_LINKS
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.simulation.objects.common import compound_shape, MAX_COMPOUND_SHAPES
 from projection_server.simulation.objects.registry import (FRACTION, NAME, NONNEGATIVE,
                                                            ObjectClass, PAIRS, POINTS,
                                                            POSITIVE, Property, register,
@@ -132,14 +133,23 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
         raise ProjectionError(ErrorKind.INVALID_SCENARIO, 'every pancake particle but the seed '
                                                   'needs a parent joint')
     head = list(range(n))             # each particle's segment, named by its first particle
+    full = set()                      # segments that no neighbour can join
     while len(set(head)) > max_segments:
         size = Counter(head)
+        open_ = [h for h in size if h not in full]
+        if not open_:
+            break
         # The smallest segment (the last joined on a tie: the rim first) joins the smallest
-        # segment it shares a joint with; the union's first particle names it.
-        small = min(size, key=lambda h: (size[h], -h))
+        # segment it shares a joint with; the union's first particle names it. A segment is
+        # one compound of a sphere per particle, so a union stays within what PyBullet keeps.
+        small = min(open_, key=lambda h: (size[h], -h))
         touching = {head[j] for i in range(1, n) for j in (i, parents[i])
                     if small in (head[i], head[parents[i]])} - {small}
-        other = min(touching, key=lambda h: (size[h], -h))
+        fits = [h for h in touching if size[h] + size[small] <= MAX_COMPOUND_SHAPES]
+        if not fits:
+            full.add(small)
+            continue
+        other = min(fits, key=lambda h: (size[h], -h))
         keep, drop = min(small, other), max(small, other)
         head = [keep if h == drop else h for h in head]
     heads = sorted(set(head))         # ascending: a parent segment before its children
@@ -224,8 +234,8 @@ def _collision_shape(c: Any, s: Segment, offset: np.ndarray) -> int:
     radial, tangential, thickness = s.size
     if s.kind == 'sphere':
         shift = offset - np.asarray(s.centre)
-        return c.createCollisionShapeArray(
-            [c.GEOM_SPHERE] * len(s.spheres), radii=[thickness / 2] * len(s.spheres),
+        return compound_shape(
+            c, [c.GEOM_SPHERE] * len(s.spheres), radii=[thickness / 2] * len(s.spheres),
             collisionFramePositions=[list(np.asarray(q) + shift) for q in s.spheres])
     # Rings and centre: capsules of the thickness along the segment's inner and outer edge
     # (the centre: two across it), so every edge a blade can meet is round.
@@ -240,8 +250,8 @@ def _collision_shape(c: Any, s: Segment, offset: np.ndarray) -> int:
                   tangential * (k + sign * (0.5 - r / radial)) / k - 2 * r)
                  for sign in (-1.0, 1.0)]
     capsule = list(c.getQuaternionFromEuler((math.pi / 2, 0.0, s.yaw)))   # z -> tangent
-    return c.createCollisionShapeArray(
-        [c.GEOM_CAPSULE] * 2, radii=[r, r], lengths=[max(length, 1e-4) for _, length in edges],
+    return compound_shape(
+        c, [c.GEOM_CAPSULE] * 2, radii=[r, r], lengths=[max(length, 1e-4) for _, length in edges],
         collisionFramePositions=[list(e) for e, _ in edges],
         collisionFrameOrientations=[capsule, capsule])
 
