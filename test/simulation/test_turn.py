@@ -176,7 +176,18 @@ def test_a_group_is_never_more_spheres_than_one_compound_keeps():
                             [[i - 1, i] for i in range(1, 300)])):
         segments = particles_layout(points, joints, 0.008)
         assert max(len(s.spheres) for s in segments) <= MAX_COMPOUND_SHAPES
+        assert len(segments) <= MAX_SEGMENTS     # the disc: 37 groups by merging alone
         assert sum(len(s.spheres) for s in segments) == len(points)
+
+
+def test_a_pancake_too_large_for_one_multibody_is_refused():
+    # 600 particles need 38 groups of 16; a multibody reports 31 joints: refused, not built
+    # with joints PyBullet does not report.
+    from projection_server.errors import ProjectionError
+    chain = [[0.01 * i, 0.0, 0.0] for i in range(600)]
+    with pytest.raises(ProjectionError) as raised:
+        particles_layout(chain, [[i - 1, i] for i in range(1, 600)], 0.008)
+    assert raised.value.kind.value == 'invalid_scenario' and '600 particles' in str(raised.value)
 
 
 # --- the world -------------------------------------------------------------------------

@@ -118,7 +118,10 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
     tree is contracted: the smallest segment is merged with the smallest one it is joined to
     until few enough remain, so a segment is a connected group of particles of about equal
     size (one sphere each); the factory's joints inside a group become rigid, the others stay
-    springs.
+    springs. A group is one compound, so it holds at most :data:`MAX_COMPOUND_SHAPES`
+    particles; a pancake whose groups cannot be made few enough within that cap (more than
+    ``max_segments`` x 16 particles, or a tree that leaves small groups between full ones)
+    is refused (``invalid_scenario``) rather than built with joints PyBullet does not report.
     """
     points = np.asarray(particles, dtype=float).reshape(-1, 3)
     n = len(points)
@@ -138,7 +141,7 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
         size = Counter(head)
         open_ = [h for h in size if h not in full]
         if not open_:
-            break
+            break             # refused below
         # The smallest segment (the last joined on a tie: the rim first) joins the smallest
         # segment it shares a joint with; the union's first particle names it. A segment is
         # one compound of a sphere per particle, so a union stays within what PyBullet keeps.
@@ -152,6 +155,16 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
         other = min(fits, key=lambda h: (size[h], -h))
         keep, drop = min(small, other), max(small, other)
         head = [keep if h == drop else h for h in head]
+    if len(set(head)) > max_segments:
+        # Merging the smallest left small groups between full ones: cut the tree into the
+        # fewest connected groups instead (Kundu and Misra's greedy), with the smallest cap
+        # that gives few enough, so the groups stay about equal.
+        head = next((h for cap in range(2, MAX_COMPOUND_SHAPES + 1)
+                     if len(set(h := _tree_groups(parents, cap))) <= max_segments), head)
+    if len(set(head)) > max_segments:
+        raise ProjectionError(ErrorKind.INVALID_SCENARIO,
+                              f'a pancake of {n} particles needs {len(set(head))} groups of at '
+                              f'most {MAX_COMPOUND_SHAPES}; a multibody reports {max_segments}')
     heads = sorted(set(head))         # ascending: a parent segment before its children
     index = {h: k for k, h in enumerate(heads)}
     members: dict[int, list[int]] = {h: [] for h in heads}
@@ -174,6 +187,28 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
                     (thickness,) * 3, 0.0, area * len(members[h]), names[k],
                     tuple(tuple(points[i]) for i in members[h]))
             for k, h in enumerate(heads)]
+
+
+def _tree_groups(parents: list[int], cap: int) -> list[int]:
+    """The fewest connected groups of at most ``cap`` nodes of the tree ``parents``
+    (parent < child), each node's group named by its topmost node."""
+    n = len(parents)
+    weight = [1] * n
+    children: list[list[int]] = [[] for _ in range(n)]
+    cut = [False] * n
+    for i in range(n - 1, -1, -1):     # children before their parent
+        for child in sorted(children[i], key=lambda c: weight[c]):   # lightest kept
+            if weight[i] + weight[child] > cap:
+                cut[child] = True
+            else:
+                weight[i] += weight[child]
+        if i:
+            children[parents[i]].append(i)
+    head = list(range(n))
+    for i in range(1, n):
+        if not cut[i]:
+            head[i] = head[parents[i]]
+    return head
 
 
 def build_pancake(physics: Physics, entity: Entity) -> None:
