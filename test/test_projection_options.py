@@ -32,9 +32,11 @@ def test_finer_physics_multiply_the_default_limit_by_their_cost(prolog):
     # the program's own settings are the base: the turn runs with fewer iterations
     own = prolog.query_once('projection_physics_setting(turn_pancake, solver_iterations, S), '
                             'get_dict(default, S, D)')['D']
+    rate = prolog.query_once('projection_physics_setting(turn_pancake, rate_hz, S), '
+                             'get_dict(default, S, D)')['D']
     assert own < 100
     assert timeout(prolog, 'turn_pancake',
-                   f'[physics(_{{rate_hz: 960, solver_iterations: {4 * own}}})]') == 60 * 16
+                   f'[physics(_{{rate_hz: {4 * rate}, solver_iterations: {4 * own}}})]') == 60 * 16
     assert timeout(prolog, 'plan', '[physics(_{rate_hz: 480})]') == 120
 
 
