@@ -119,9 +119,10 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
     until few enough remain, so a segment is a connected group of particles of about equal
     size (one sphere each); the factory's joints inside a group become rigid, the others stay
     springs. A group is one compound, so it holds at most :data:`MAX_COMPOUND_SHAPES`
-    particles; a pancake whose groups cannot be made few enough within that cap (more than
-    ``max_segments`` x 16 particles, or a tree that leaves small groups between full ones)
-    is refused (``invalid_scenario``) rather than built with joints PyBullet does not report.
+    particles. Where merging leaves too many groups (small ones between full ones), the tree
+    is cut into the fewest connected groups within that cap instead; a pancake that no cut
+    fits (more than ``max_segments`` x 16 particles, or a tree too branched) is refused
+    (``invalid_scenario``) rather than built with joints PyBullet does not report.
     """
     points = np.asarray(particles, dtype=float).reshape(-1, 3)
     n = len(points)
@@ -141,7 +142,7 @@ def particles_layout(particles: list[Any], joints: list[Any], thickness: float,
         size = Counter(head)
         open_ = [h for h in size if h not in full]
         if not open_:
-            break             # refused below
+            break             # cut or refused below
         # The smallest segment (the last joined on a tie: the rim first) joins the smallest
         # segment it shares a joint with; the union's first particle names it. A segment is
         # one compound of a sphere per particle, so a union stays within what PyBullet keeps.
