@@ -385,7 +385,7 @@ TABLE_III_POURED_PANCAKE = Experiment(
 # pancake_maker1 (195 degC) in a projection of its own (wait, with 20 solver iterations:
 # a batter at rest on the pan, set alike at a 2x finer step), and what it became is
 # handed on to the turning scenario's kitchen, pan and spatula. Cook once, turn six times.
-COOK_TIME = 8.0   # s: the poured batter (162 particles) is set through at 8 s (468 bonds)
+COOK_TIME = 8.0   # s: the poured batter (about 160 particles) is set through at 8 s
 COOKED_SETUP = (
     POUR_ON_PAN +
     'quantity(particles_on_positions(pancake_maker1), Poured, PourTL),\n'
