@@ -6,7 +6,8 @@ the mix's properties, in this process's workers (no node), against the paper's.
         --angles 1.84
     tools/with_env.sh python bench/batter_fit.py --set surface_tension=0.25,0.4 --tilt-rate 1,2
 
-Each ``--set NAME=V1,V2,..`` is a property of ``pancake_mix1`` and its candidate values; every
+Each ``--set NAME=V1,V2,..`` is a property of ``pancake_mix1`` (``ENTITY.NAME``: of another
+entity of the scenario, e.g. ``cup1.friction``) and its candidate values; every
 combination of the candidates (and of ``--tilt-rate``'s rates of the pour, its
 second coefficient) runs the pours of ``--angles`` (default: all three) at the
 paper's positions and times, at the pour's own physics, in ``--workers`` processes. Printed
@@ -78,7 +79,8 @@ def _pour(args):
 def main() -> int:
     parser = harness.arguments(__doc__)
     parser.add_argument('--set', action='append', default=[],
-                        help='NAME=V1,V2,...: candidate values of a property of the mix')
+                        help='[ENTITY.]NAME=V1,V2,...: candidate values of a property of the '
+                             'mix (or of ENTITY)')
     parser.add_argument('--angles', default='1.84,1.99,2.14')
     parser.add_argument('--tilt-rate', default=None,
                         help='R1,R2,...: candidate tilt rates of the pour [rad/s] (default: '
@@ -108,8 +110,10 @@ def main() -> int:
     with get_context('forkserver').Pool(args.workers) as pool:
         for rate, combination in itertools.product(rates, itertools.product(*candidates)):
             scenario = harness.kb_scenario('pouring')
-            harness.find_entity(scenario['entities'], 'pancake_mix1')['properties'].update(
-                zip(names, combination))
+            for name, value in zip(names, combination):
+                entity, _, prop = name.rpartition('.')
+                harness.find_entity(scenario['entities'], entity or 'pancake_mix1')[
+                    'properties'][prop] = value
             start = time.monotonic()
             results = pool.map(_pour, [(scenario, {'position': p, 'time': t, 'angle': a},
                                         physics, rate) for p, t, a in cells])
