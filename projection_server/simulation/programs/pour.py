@@ -4,18 +4,18 @@ The cup, filled with the particle fluid it contains, is held upright above the p
 at the height of its pose in the scenario, with its pouring lip (the rim on the
 :data:`POUR_SIDE` of x) over the maker's centre shifted by ``position`` metres along y. It
 tilts about the lip (so that its opening turns towards that side) at :data:`TILT_RATE` up to
-``angle`` (0 = upright, pi/2 = on its side), holds that angle for ``time`` seconds, tilts back upright at the same rate and the
-particles settle. It speeds up and slows down at :data:`TILT_ACCEL`, so that it comes to rest
-at ``angle`` and upright rather than stopping at once. The paper gives no rate; 1 rad/s is the
-second of the two coefficients fitted to its Table II as a whole, beside the mix's surface
-tension (bench/batter_fit.py, bench/RESULTS.md 2026-11-28). While it tilts, the lip is
-lowered as far as the cup's lowest point keeps its initial clearance above the maker, but not
-below :data:`POUR_HEIGHT` (a person pours batter from a few centimetres above the pan). The
-cup is moved kinematically: a fixed constraint pulls it to the commanded pose at every physics
-step (no arm is simulated), so that it moves the same smooth path at every time step. Once the
-cup is upright again the pour ends as soon as the batter has come to rest (every particle
-slower than :data:`REST_SPEED`), after :data:`AFTER` seconds at the latest. Nothing in the
-program looks at where the batter is.
+``angle`` (0 = upright, pi/2 = on its side), holds that angle for ``time`` seconds, tilts
+back upright at the same rate and the particles settle. It speeds up and slows down at
+:data:`TILT_ACCEL`, so that it comes to rest at ``angle`` and upright rather than stopping at
+once. The paper gives no rate; 1 rad/s is the second of the two coefficients fitted to its
+Table II as a whole, beside the mix's surface tension (bench/batter_fit.py, bench/RESULTS.md
+2026-11-28). While it tilts, the lip is lowered as far as the cup's lowest point keeps its
+initial clearance above the maker, but not below :data:`POUR_HEIGHT` (a person pours batter
+from a few centimetres above the pan). The cup is moved kinematically: a fixed constraint
+pulls it to the commanded pose at every physics step (no arm is simulated), so that it moves
+the same smooth path at every time step. Once the cup is upright again the pour ends as soon
+as the batter has come to rest (every particle slower than :data:`REST_SPEED`), after
+:data:`AFTER` seconds at the latest. Nothing in the program looks at where the batter is.
 """
 
 from __future__ import annotations
