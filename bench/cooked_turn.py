@@ -5,14 +5,15 @@ Table III (cooked) in this process (no node), with what happens to the bonds.
     tools/with_env.sh python bench/cooked_turn.py --cook 960/80 --turn 240/20 --angles 0.1,0.9
 
 The pour (2.14 rad, 0.5 s, centre; the pour's own physics) runs once and is kept in
-``--state`` (a JSON file; delete it to pour again). The batter it left on the pan cooks
-``--time`` seconds on pancake_maker1 (``wait``) at each ``--cook`` physics (RATE/ITERATIONS),
-and each cooked batter is turned at ``--angles`` at each ``--turn`` physics, as
-``reproduce``'s ``table3_cooked`` does. Printed per turn: the outcome (upside_down), the
-bonds at the start and at the end, the bonds broken while pushed / lifted / flipped / at
-rest, the largest bonded cluster at the end (particles), where the cluster's centroid ends
-(x, z relative to where it started), and the largest distance of the spatula's front edge
-from its path (``TurnPancake.pose`` at the same time) during the push [mm]. With
+``--state`` (a JSON file; delete it to pour again; ``--set-pour`` changes the pour's
+scenario, ``--set`` the batter's properties in the cook and the turns). The batter it left on
+the pan cooks ``--time`` seconds on pancake_maker1 (``wait``) at each ``--cook`` physics
+(RATE/ITERATIONS), and each cooked batter is turned at ``--angles`` at each ``--turn``
+physics, as ``reproduce``'s ``table3_cooked`` does. Printed per turn: the outcome
+(upside_down), the bonds at the start and at the end, the bonds broken while pushed / lifted
+/ flipped / at rest, the largest bonded cluster at the end (particles), where the cluster's
+centroid ends (x, z relative to where it started), and the largest distance of the spatula's
+front edge from its path (``TurnPancake.pose`` at the same time) during the push [mm]. With
 ``COOKED_TURN_TRACE=1`` each turn also prints, every 0.1 s, the batter's centroid, the z
 component of its up axis (the Kabsch rotation from where it started) and the spatula.
 """
@@ -70,12 +71,16 @@ def quantities(timeline):
     return {(name, tuple(args)): value for name, args, value in timeline['quantities']}
 
 
-def pour(state: Path, bags: Path) -> dict:
+def pour(state: Path, bags: Path, changes: dict) -> dict:
     if state.exists():
         return json.loads(state.read_text())
     from projection_server.simulation import Job
 
-    job = Job.checked(harness.kb_scenario('pouring'), 'pour', POUR)
+    d = harness.kb_scenario('pouring')
+    for name, value in changes.items():
+        entity, _, prop = name.rpartition('.')
+        harness.find_entity(d['entities'], entity or 'pancake_mix1')['properties'][prop] = value
+    job = Job.checked(d, 'pour', POUR)
     start = time.process_time()
     timeline, _ = _run(job, _settings('pour', {}), bags / 'pour')
     q = quantities(timeline)
@@ -195,6 +200,9 @@ def main() -> None:
     parser.add_argument('--angles', default='0.1,0.3,0.4,0.5,0.7,0.9')
     parser.add_argument('--set', action='append', default=[],
                         help="NAME=VALUE: a property of the batter (cook and turn)")
+    parser.add_argument('--set-pour', action='append', default=[],
+                        help="[ENTITY.]NAME=VALUE: a property of the mix (or of ENTITY) in "
+                             "the pour")
     parser.add_argument('--set-turn', action='append', default=[],
                         help="NAME=VALUE: a property of the batter in the turn only")
     args = parser.parse_args()
@@ -206,7 +214,8 @@ def main() -> None:
           f'changes {changes}, in the turn {turn_changes}')
     with tempfile.TemporaryDirectory() as tmp:
         bags = Path(tmp)
-        poured = pour(args.state, bags)
+        poured = pour(args.state, bags, {k: float(v) for k, v in
+                                          (s.split('=') for s in args.set_pour)})
         print(f'pour: {len(poured["positions"])} particles on the pan')
         for c in args.cook:
             cooked = cook(poured, _physics(c), args.time, bags, changes)
