@@ -110,10 +110,7 @@ def main() -> int:
     with get_context('forkserver').Pool(args.workers) as pool:
         for rate, combination in itertools.product(rates, itertools.product(*candidates)):
             scenario = harness.kb_scenario('pouring')
-            for name, value in zip(names, combination):
-                entity, _, prop = name.rpartition('.')
-                harness.find_entity(scenario['entities'], entity or 'pancake_mix1')[
-                    'properties'][prop] = value
+            harness.set_properties(scenario['entities'], dict(zip(names, combination)))
             start = time.monotonic()
             results = pool.map(_pour, [(scenario, {'position': p, 'time': t, 'angle': a},
                                         physics, rate) for p, t, a in cells])

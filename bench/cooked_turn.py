@@ -77,9 +77,7 @@ def pour(state: Path, bags: Path, changes: dict) -> dict:
     from projection_server.simulation import Job
 
     d = harness.kb_scenario('pouring')
-    for name, value in changes.items():
-        entity, _, prop = name.rpartition('.')
-        harness.find_entity(d['entities'], entity or 'pancake_mix1')['properties'][prop] = value
+    harness.set_properties(d['entities'], changes)
     job = Job.checked(d, 'pour', POUR)
     start = time.process_time()
     timeline, _ = _run(job, _settings('pour', {}), bags / 'pour')

@@ -2,8 +2,9 @@
 
 * the command line and the settings line: :func:`arguments`, :func:`machine`,
   :func:`listed`;
-* the knowledge base's scenarios, from the server's Prolog in this process:
-  :func:`kb_scenario`, :func:`prolog`;
+* the knowledge base's scenarios, from the server's Prolog in this process, and their
+  entities' properties: :func:`kb_scenario`, :func:`prolog`, :func:`find_entity`,
+  :func:`set_properties`;
 * a node of its own, a client of it and what its ping says: :func:`ros_domain`,
   :func:`start_node`, :func:`client`, :class:`ServerStats`;
 * what ``/proc`` says of a node and its projection workers: :func:`worker_pids`,
@@ -130,6 +131,15 @@ def find_entity(entities: list[dict[str, Any]], name: str) -> dict[str, Any]:
         if found:
             return found
     return {}
+
+
+def set_properties(entities: list[dict[str, Any]], changes: dict[str, Any],
+                   default: str = 'pancake_mix1') -> None:
+    """Set each ``ENTITY.NAME`` (or ``NAME``, a property of ``default``) of ``changes`` among
+    a scenario description's ``entities``."""
+    for key, value in changes.items():
+        entity, _, prop = key.rpartition('.')
+        find_entity(entities, entity or default)['properties'][prop] = value
 
 
 @functools.cache
