@@ -130,7 +130,9 @@ def test_the_cooked_pancakes_turn_is_the_same_at_a_2x_finer_step(call):
     does not (0.9 rad), at the program's physics and at a 2x finer step with 2x the
     iterations: the same outcomes (before a set particle lost its rolling friction, its
     bonds shook apart at the finer step and it failed at every angle; at 240 Hz with 20
-    iterations the pancake of the closed cup's pour flipped at 0.9 rad)."""
+    iterations the pancake of the closed cup's pour flipped at 0.9 rad). Between them the
+    turn is not converged: at 0.3 and 0.4 rad it turns at the program's step and not at
+    2x (bench/RESULTS.md, 2026-11-29)."""
     from projection_server.reproduce.experiments import COOKED_SETUP
 
     r, sols = ask(call, COOKED_SETUP + ', projection_physics_setting(turn_pancake, rate_hz, '
