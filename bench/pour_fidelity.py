@@ -13,6 +13,7 @@ bench/fidelity.py's tolerances:
 
     tools/with_env.sh python bench/pour_fidelity.py                  # 4 points
     tools/with_env.sh python bench/pour_fidelity.py --points all --no-reference
+    tools/with_env.sh python bench/pour_fidelity.py --points all --angle 1.84 --no-global
     tools/with_env.sh python bench/pour_fidelity.py --points misses --no-global \
         --also 960/120 720/60          # how far equally fine settings differ
 
@@ -94,6 +95,9 @@ def main() -> int:
     parser.add_argument('--points', default='four', choices=('four', 'all', 'misses'),
                         help='four points, all 27 of Table II, or the four small piles '
                              'whose counts differ most from the reference')
+    parser.add_argument('--angle', type=float, default=None,
+                        help='only the points at this angle (e.g. --points all --angle 1.84: '
+                             'the 1.84 rad column)')
     parser.add_argument('--also', nargs='*', default=[], metavar='HZ/ITERATIONS',
                         help='more fine settings to run beside the reference (e.g. '
                              '960/120 720/60): how much equally fine settings differ')
@@ -130,6 +134,8 @@ def main() -> int:
     points = {'four': POINTS, 'misses': MISSES}.get(args.points) or [
         (a, h, x) for x, h, a in itertools.product(
             paper.POUR_POSITIONS, paper.POUR_TIMES, paper.POUR_ANGLES)]
+    if args.angle is not None:
+        points = [p for p in points if p[0] == args.angle]
     scenario = harness.kb_scenario('pouring')
     jobs = [(scenario, point, name, physics, engine if name == 'program' else {})
             for point in points for name, physics in configs.items()]
