@@ -6,16 +6,17 @@ Table III (cooked) in this process (no node), with what happens to the bonds.
 
 The pour (2.14 rad, 0.5 s, centre; the pour's own physics) runs once and is kept in
 ``--state`` (a JSON file; delete it to pour again; ``--set-pour`` changes the pour's
-scenario, ``--set`` the batter's properties in the cook and the turns). The batter it left on
-the pan cooks ``--time`` seconds on pancake_maker1 (``wait``) at each ``--cook`` physics
-(RATE/ITERATIONS), and each cooked batter is turned at ``--angles`` at each ``--turn``
-physics, as ``reproduce``'s ``table3_cooked`` does. Printed per turn: the outcome
-(upside_down), the bonds at the start and at the end, the bonds broken while pushed / lifted
-/ flipped / at rest, the largest bonded cluster at the end (particles), where the cluster's
-centroid ends (x, z relative to where it started), and the largest distance of the spatula's
-front edge from its path (``TurnPancake.pose`` at the same time) during the push [mm]. With
-``COOKED_TURN_TRACE=1`` each turn also prints, every 0.1 s, the batter's centroid, the z
-component of its up axis (the Kabsch rotation from where it started) and the spatula.
+scenario, and a state poured with other changes is poured again; ``--set`` the batter's
+properties in the cook and the turns). The batter it left on the pan cooks ``--time`` seconds
+on pancake_maker1 (``wait``) at each ``--cook`` physics (RATE/ITERATIONS), and each cooked
+batter is turned at ``--angles`` at each ``--turn`` physics, as ``reproduce``'s
+``table3_cooked`` does. Printed per turn: the outcome (upside_down), the bonds at the start
+and at the end, the bonds broken while pushed / lifted / flipped / at rest, the largest
+bonded cluster at the end (particles), where the cluster's centroid ends (x, z relative to
+where it started), and the largest distance of the spatula's front edge from its path
+(``TurnPancake.pose`` at the same time) during the push [mm]. With ``COOKED_TURN_TRACE=1``
+each turn also prints, every 0.1 s, the batter's centroid, the z component of its up axis
+(the Kabsch rotation from where it started) and the spatula.
 """
 
 from __future__ import annotations
@@ -73,7 +74,10 @@ def quantities(timeline):
 
 def pour(state: Path, bags: Path, changes: dict) -> dict:
     if state.exists():
-        return json.loads(state.read_text())
+        kept = json.loads(state.read_text())
+        if kept.get('changes', {}) == changes:
+            return kept
+        print(f'{state} was poured with {kept.get("changes", {})}: pouring again')
     from projection_server.simulation import Job
 
     d = harness.kb_scenario('pouring')
@@ -85,7 +89,7 @@ def pour(state: Path, bags: Path, changes: dict) -> dict:
     out = {'positions': q[('particles_on_positions', ('pancake_maker1',))],
            'temperatures': q[('particles_on_temperatures', ('pancake_maker1',))],
            'bonds': q[('particles_on_bonds', ('pancake_maker1',))],
-           'cpu': time.process_time() - start}
+           'cpu': time.process_time() - start, 'changes': changes}
     state.write_text(json.dumps(out))
     return out
 
@@ -189,6 +193,11 @@ def _physics(text: str) -> dict:
     return {'rate_hz': int(rate), 'solver_iterations': int(iterations)}
 
 
+def _assignments(items: list[str]) -> dict[str, float]:
+    """``NAME=VALUE`` arguments as a dict."""
+    return {k: float(v) for k, v in (item.split('=') for item in items)}
+
+
 def main() -> None:
     parser = harness.arguments(__doc__)
     parser.add_argument('--state', type=Path, default=Path('/tmp/cooked_turn_pour.json'))
@@ -204,16 +213,14 @@ def main() -> None:
     parser.add_argument('--set-turn', action='append', default=[],
                         help="NAME=VALUE: a property of the batter in the turn only")
     args = parser.parse_args()
-    changes = {k: float(v) for k, v in (s.split('=') for s in args.set)}
-    turn_changes = {**changes, **{k: float(v) for k, v in (s.split('=')
-                                                           for s in args.set_turn)}}
+    changes = _assignments(args.set)
+    turn_changes = {**changes, **_assignments(args.set_turn)}
     angles = [float(a) for a in args.angles.split(',')]
     print(f'# {harness.machine()}; cook {args.time} s at {args.cook}, turn at {args.turn}, '
           f'changes {changes}, in the turn {turn_changes}')
     with tempfile.TemporaryDirectory() as tmp:
         bags = Path(tmp)
-        poured = pour(args.state, bags, {k: float(v) for k, v in
-                                          (s.split('=') for s in args.set_pour)})
+        poured = pour(args.state, bags, _assignments(args.set_pour))
         print(f'pour: {len(poured["positions"])} particles on the pan')
         for c in args.cook:
             cooked = cook(poured, _physics(c), args.time, bags, changes)
