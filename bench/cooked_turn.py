@@ -15,8 +15,9 @@ and at the end, the bonds broken while pushed / lifted / flipped / at rest, the 
 bonded cluster at the end (particles), where the cluster's centroid ends (x, z relative to
 where it started), and the largest distance of the spatula's front edge from its path
 (``TurnPancake.pose`` at the same time) during the push [mm]. With ``COOKED_TURN_TRACE=1``
-each turn also prints, every 0.1 s, the batter's centroid, the z component of its up axis
-(the Kabsch rotation from where it started) and the spatula.
+each turn also prints, every 0.1 s, the batter's centroid and the height of its lowest and
+highest particle, the z component of its up axis (the Kabsch rotation from where it
+started), the spatula's position and its contact points, and the bonds.
 """
 
 from __future__ import annotations
@@ -164,9 +165,11 @@ def turn(batter: dict, angle: float, physics: dict, bags: Path, changes: dict) -
             c = physics_.client
             sp = c.getBasePositionAndOrientation(task._spatula)[0]
             print(f'    t {physics_.time:.1f} {phase:5} centroid x {100 * x[:, 0].mean():+.1f} '
-                  f'z {100 * (x[:, 2].mean() - 0.75):.1f} cm up_z {r[2, 2]:+.2f} '
-                  f'spatula x {100 * sp[0]:+.1f} z {100 * (sp[2] - 0.75):.1f} cm '
-                  f'bonds {len(heat.thermal_state().bonds)}', flush=True)
+                  f'y {100 * x[:, 1].mean():+.1f} z {100 * (x[:, 2].mean() - 0.75):.1f} cm '
+                  f'(z {100 * (x[:, 2].min() - 0.75):.1f}-{100 * (x[:, 2].max() - 0.75):.1f}) '
+                  f'up_z {r[2, 2]:+.2f} spatula x {100 * sp[0]:+.1f} y {100 * sp[1]:+.1f} '
+                  f'z {100 * (sp[2] - 0.75):.1f} cm, {len(c.getContactPoints(task._spatula))} '
+                  f'contacts, bonds {len(heat.thermal_state().bonds)}', flush=True)
 
     start = time.process_time()
     timeline, projection = _run(job, _settings('turn_pancake', {}), bags /
@@ -186,6 +189,16 @@ def turn(batter: dict, angle: float, physics: dict, bags: Path, changes: dict) -
     return {'ok': ok, 'bonds0': len(batter['bonds']), 'bonds1': len(state.bonds),
             'broken': broken, 'cluster': len(cluster), 'dx': float(moved[0]),
             'dz': float(moved[2]), 'lag': trace['lag'], 'cpu': cpu}
+
+
+def _shape(positions) -> tuple[float, float, float]:
+    """The spans of the particles' centres along their horizontal principal axes (long,
+    short) [m], and the long axis's angle to x [deg, 0-90]."""
+    xy = np.asarray(positions, dtype=float)[:, :2]
+    xy = xy - xy.mean(axis=0)
+    _, axes = np.linalg.eigh(np.cov(xy.T))
+    spans = np.ptp(xy @ axes, axis=0)
+    return float(spans[1]), float(spans[0]), float(np.degrees(np.arccos(abs(axes[0, 1]))))
 
 
 def _physics(text: str) -> dict:
@@ -224,8 +237,11 @@ def main() -> None:
         print(f'pour: {len(poured["positions"])} particles on the pan')
         for c in args.cook:
             cooked = cook(poured, _physics(c), args.time, bags, changes)
+            long_, short, heading = _shape(cooked['positions'])
             print(f'cook {c}: set_fraction {cooked["set_fraction"]:.2f}, '
-                  f'{len(cooked["bonds"])} bonds, {cooked["cpu"]:.0f} CPU s', flush=True)
+                  f'{len(cooked["bonds"])} bonds, particle centres spanning {100 * long_:.1f} '
+                  f'x {100 * short:.1f} cm, the long axis {heading:.0f} deg from the push (x), '
+                  f'{cooked["cpu"]:.0f} CPU s', flush=True)
             turned = bags / f'cooked{_tag(_physics(c))}'   # each cook's turns, own bags
             turned.mkdir()
             for t in args.turn:
