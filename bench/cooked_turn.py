@@ -2,6 +2,7 @@
 Table III (cooked) in this process (no node), with what happens to the bonds.
 
     tools/with_env.sh python bench/cooked_turn.py --turn 240/20 960/80
+    tools/with_env.sh python bench/cooked_turn.py --turn 480/40 960/80/0.1 1920/160/0.05
     tools/with_env.sh python bench/cooked_turn.py --cook 960/80 --turn 240/20 --angles 0.1,0.9
 
 The pour (2.14 rad, 0.5 s, centre; the pour's own physics) runs once and is kept in
@@ -9,7 +10,8 @@ The pour (2.14 rad, 0.5 s, centre; the pour's own physics) runs once and is kept
 scenario, and a state poured with other changes is poured again; ``--set`` the batter's
 properties in the cook and the turns). The batter it left on the pan cooks ``--time`` seconds
 on pancake_maker1 (``wait``) at each ``--cook`` physics (RATE/ITERATIONS), and each cooked
-batter is turned at ``--angles`` at each ``--turn`` physics, as ``reproduce``'s
+batter is turned at ``--angles`` at each ``--turn`` physics (RATE/ITERATIONS[/ERP], ERP the
+error reduction of joints, contacts and friction), as ``reproduce``'s
 ``table3_cooked`` does. Printed per turn: the outcome (upside_down), the bonds at the start
 and at the end, the bonds broken while pushed / lifted / flipped / at rest, the largest
 bonded cluster at the end (particles), where the cluster's centroid ends (x, z relative to
@@ -127,7 +129,8 @@ def _change(d: dict, changes: dict) -> None:
 
 
 def _tag(physics):
-    return f'{physics.get("rate_hz", 240)}_{physics.get("solver_iterations", "own")}'
+    return (f'{physics.get("rate_hz", 240)}_{physics.get("solver_iterations", "own")}'
+            f'_{physics.get("erp", "own")}')
 
 
 def turn(batter: dict, angle: float, physics: dict, bags: Path, changes: dict) -> dict:
@@ -202,8 +205,14 @@ def _shape(positions) -> tuple[float, float, float]:
 
 
 def _physics(text: str) -> dict:
-    rate, iterations = text.split('/')
-    return {'rate_hz': int(rate), 'solver_iterations': int(iterations)}
+    """``RATE/ITERATIONS[/ERP]``: ERP sets the error reduction of joints, contacts and
+    friction (Bullet's fraction per step: ``0.2`` at 480 Hz corrects as much a second as
+    ``0.1`` at 960)."""
+    rate, iterations, *erp = text.split('/')
+    physics = {'rate_hz': int(rate), 'solver_iterations': int(iterations)}
+    if erp:
+        physics.update(dict.fromkeys(('erp', 'contact_erp', 'friction_erp'), float(erp[0])))
+    return physics
 
 
 def _assignments(items: list[str]) -> dict[str, float]:
