@@ -14,6 +14,7 @@ bench/fidelity.py's tolerances:
     tools/with_env.sh python bench/pour_fidelity.py                  # 4 points
     tools/with_env.sh python bench/pour_fidelity.py --points all --no-reference
     tools/with_env.sh python bench/pour_fidelity.py --points all --angle 1.84 --no-global
+    tools/with_env.sh python bench/pour_fidelity.py --no-global --erp-per-second
     tools/with_env.sh python bench/pour_fidelity.py --points misses --no-global \
         --also 960/120 720/60          # how far equally fine settings differ
 
@@ -102,6 +103,10 @@ def main() -> int:
                         help='more fine settings to run beside the reference (e.g. '
                              '960/120 720/60): how much equally fine settings differ')
     parser.add_argument('--factor', type=int, default=4, help="the reference's refinement")
+    parser.add_argument('--erp-per-second', action='store_true',
+                        help="the reference's error reduction (erp, contact_erp, "
+                             "friction_erp) divided by --factor: Bullet's erp is a fraction "
+                             'per step, so this corrects as much a second as the pour does')
     parser.add_argument('--no-reference', action='store_true')
     parser.add_argument('--no-global', action='store_true')
     parser.add_argument('--workers', type=int, default=2)
@@ -128,6 +133,9 @@ def main() -> int:
     if not args.no_reference and not args.reference_from:
         configs['reference'] = {'rate_hz': own.rate_hz * args.factor,
                                 'solver_iterations': own.solver_iterations * args.factor}
+        if args.erp_per_second:
+            configs['reference'].update({name: getattr(own, name) / args.factor for name in
+                                         ('erp', 'contact_erp', 'friction_erp')})
     for also in args.also:
         rate, iterations = (int(v) for v in also.split('/'))
         configs[also] = {'rate_hz': rate, 'solver_iterations': iterations}
