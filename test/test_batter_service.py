@@ -60,15 +60,24 @@ def test_more_surface_tension_puts_fewer_particles_on_the_pan_at_the_smallest_an
 
 def test_a_thinner_batter_spreads_wider(call):
     """A tenth of the batter's drag (its bulk viscosity): the cup emptied onto the pan
-    (2.14 rad held 2 s), the batter covers more of it (111.8 against 104.4 cm^2). Its
-    roundness no longer grows with the cohesive batter (0.70 and 0.70), and a quarter of
-    the drag covers no more (103.7 cm^2); viscosity between particles does not thin a heap
-    that rolling friction holds up (bench/RESULTS.md, 2026-11-28)."""
+    (2.14 rad held 2 s), the batter covers more of it (141.3 against 114.8 cm^2) and lies
+    rounder (0.89 against 0.63). A quarter of the drag covers no more (115.4 cm^2), and
+    without viscosity between particles the batter covers as much (112.7 cm^2): the drag
+    is what holds a heap of sliding drops up (bench/RESULTS.md, 2026-11-29, 12:50)."""
     (thin, base), drag = pour(call, 'damping', (0.1, 1), 2.14, 2.0, 'spread_area')
     assert thin > 1.03 * base, (drag, thin, base)
 
 
-@pytest.mark.parametrize('prop', ['surface_tension', 'viscosity'])
+def test_a_batter_that_rolls_runs_out_of_a_barely_tilted_cup(call):
+    """The mix's particles with a solid sphere's rotational inertia (the knowledge base's
+    times 1e-4) roll down the cup's wall instead of sliding on it: at 1.84 rad held 0.5 s
+    more than twice as many reach the pan."""
+    (rolling, base), inertia = pour(call, 'rotational_inertia', (1e-4, 1), 1.84, 0.5,
+                                    'particles_on')
+    assert inertia > 1 and rolling > 2 * base, (inertia, rolling, base)
+
+
+@pytest.mark.parametrize('prop', ['surface_tension', 'viscosity', 'rotational_inertia'])
 def test_a_negative_value_is_a_domain_error_naming_the_property(call, prop):
     r, _ = ask(call, f'copy_scenario(pouring, S), '
                      f'scenario_set_property(S, pancake_mix1, {prop}, -1.0)')

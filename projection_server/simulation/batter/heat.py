@@ -123,13 +123,15 @@ class BatterHeat:
     particle); call it after every physics step.
 
     ``sources`` are the heated pans, ``temperatures`` the particles' initial temperatures
-    [deg C], ``bonds`` pairs bonded at the start (made now)."""
+    [deg C], ``bonds`` pairs bonded at the start (made now). A particle that sets takes
+    ``set_friction`` and, if given, the rotational inertia ``set_inertia`` [kg m^2]."""
 
     def __init__(self, physics: Physics, name: str, radius: float,
                  sources: Sequence[HeatSource], temperatures: np.ndarray,
                  setting_temperature: float, pan_heat_rate: float, conduction_rate: float,
                  air_cooling_rate: float, bond_strength: float,
-                 bonds: Sequence[Sequence[int]] = (), set_friction: float | None = None):
+                 bonds: Sequence[Sequence[int]] = (), set_friction: float | None = None,
+                 set_inertia: float | None = None):
         self._physics = physics
         self.name = name
         self._ids = physics.fluids[name].body_ids
@@ -140,6 +142,7 @@ class BatterHeat:
         self._setting = setting_temperature
         self.set = self.temperature >= setting_temperature
         self._set_friction = set_friction
+        self._set_inertia = set_inertia
         dt = 1.0 / physics.settings.physics.rate_hz
         self._pan = -math.expm1(-pan_heat_rate * dt)
         self._air = -math.expm1(-air_cooling_rate * dt)
@@ -200,11 +203,14 @@ class BatterHeat:
 
     def _crust(self, particles: np.ndarray) -> None:
         """Make the particles that have just set beads of a crust: no rolling or spinning
-        friction (their bonds hold their turning), and the crust's friction."""
+        friction (their bonds hold their turning), the crust's friction, and a solid
+        sphere's inertia where the raw batter's was raised."""
         change, ids = self._physics.client.changeDynamics, self._ids
         crust = {'rollingFriction': 0.0, 'spinningFriction': 0.0}
         if self._set_friction is not None:
             crust['lateralFriction'] = self._set_friction
+        if self._set_inertia is not None:
+            crust['localInertiaDiagonal'] = [self._set_inertia] * 3
         for k in particles.tolist():
             change(ids[k], -1, **crust)
 

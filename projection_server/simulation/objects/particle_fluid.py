@@ -57,6 +57,7 @@ def build(physics: Physics, entity: Entity) -> None:
     else:
         positions = _block(entity.pose.xyz, count, radius)
     shape = c.createCollisionShape(c.GEOM_SPHERE, radius=radius)
+    turning = [_sphere_inertia(p) * p['rotational_inertia']] * 3
     fluid = physics.add_fluid(Fluid(entity.name, radius, []))
     for i, position in enumerate(positions):
         body = c.createMultiBody(p['particle_mass'], shape, -1, position)
@@ -64,6 +65,8 @@ def build(physics: Physics, entity: Entity) -> None:
         c.changeDynamics(body, -1, rollingFriction=p['rolling_friction'],
                          spinningFriction=p['spinning_friction'],
                          linearDamping=p['damping'], angularDamping=p['damping'])
+        if p['rotational_inertia'] != 1.0:
+            c.changeDynamics(body, -1, localInertiaDiagonal=turning)
         fluid.body_ids.append(body)
         physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False, None,
                               group=entity.name))
@@ -90,7 +93,13 @@ def _heat(physics: Physics, entity: Entity, radius: float) -> None:
     physics.step_hooks.append(BatterHeat(
         physics, entity.name, radius, sources, temperatures, p['setting_temperature'],
         p['pan_heat_rate'], p['conduction_rate'], p['air_cooling_rate'],
-        p['bond_strength'], p.get('bonds') or (), p.get('set_friction')))
+        p['bond_strength'], p.get('bonds') or (), p.get('set_friction'),
+        set_inertia=_sphere_inertia(p) if p['rotational_inertia'] != 1.0 else None))
+
+
+def _sphere_inertia(p: dict[str, Any]) -> float:
+    """A solid sphere's rotational inertia [kg m^2], 2/5 m r^2."""
+    return 0.4 * p['particle_mass'] * p['particle_radius'] ** 2
 
 
 def _check(name: str, p: dict[str, Any]) -> None:
@@ -166,6 +175,9 @@ PARTICLE_FLUID = register(ObjectClass(
                 Property('restitution', 0.0, FRACTION),
                 Property('rolling_friction', 0.0, NONNEGATIVE, 'm'),
                 Property('spinning_friction', 0.0, NONNEGATIVE, 'm'),
+                Property('rotational_inertia', 1.0, POSITIVE, '',
+                         "a particle's, in solid spheres' (2/5 m r^2); far above 1 it "
+                         'slides rather than rolls'),
                 Property('damping', 5.0, NONNEGATIVE, '1/s', 'drag against the world'),
                 Property('surface_tension', 0.0, NONNEGATIVE, 'N/m',
                          'cohesion between touching particles'),
