@@ -204,17 +204,6 @@ def _shape(positions) -> tuple[float, float, float]:
     return float(spans[1]), float(spans[0]), float(np.degrees(np.arccos(abs(axes[0, 1]))))
 
 
-def _physics(text: str) -> dict:
-    """``RATE/ITERATIONS[/ERP]``: ERP sets the error reduction of joints, contacts and
-    friction (Bullet's fraction per step: ``0.2`` at 480 Hz corrects as much a second as
-    ``0.1`` at 960)."""
-    rate, iterations, *erp = text.split('/')
-    physics = {'rate_hz': int(rate), 'solver_iterations': int(iterations)}
-    if erp:
-        physics.update(dict.fromkeys(('erp', 'contact_erp', 'friction_erp'), float(erp[0])))
-    return physics
-
-
 def _assignments(items: list[str]) -> dict[str, float]:
     """``NAME=VALUE`` arguments as a dict."""
     return {k: float(v) for k, v in (item.split('=') for item in items)}
@@ -245,18 +234,19 @@ def main() -> None:
         poured = pour(args.state, bags, _assignments(args.set_pour))
         print(f'pour: {len(poured["positions"])} particles on the pan')
         for c in args.cook:
-            cooked = cook(poured, _physics(c), args.time, bags, changes)
+            physics = harness.physics_setting(c)
+            cooked = cook(poured, physics, args.time, bags, changes)
             long_, short, heading = _shape(cooked['positions'])
             print(f'cook {c}: set_fraction {cooked["set_fraction"]:.2f}, '
                   f'{len(cooked["bonds"])} bonds, particle centres spanning {100 * long_:.1f} '
                   f'x {100 * short:.1f} cm, the long axis {heading:.0f} deg from the push (x), '
                   f'{cooked["cpu"]:.0f} CPU s', flush=True)
-            turned = bags / f'cooked{_tag(_physics(c))}'   # each cook's turns, own bags
+            turned = bags / f'cooked{_tag(physics)}'   # each cook's turns, own bags
             turned.mkdir()
             for t in args.turn:
                 outcomes = []
                 for angle in angles:
-                    r = turn(cooked, angle, _physics(t), turned, turn_changes)
+                    r = turn(cooked, angle, harness.physics_setting(t), turned, turn_changes)
                     outcomes.append('ok' if r['ok'] else 'fail')
                     b = r['broken']
                     print(f'  turn {t} {angle}: {outcomes[-1]:4} bonds {r["bonds0"]}->'

@@ -99,7 +99,7 @@ def main() -> int:
     parser.add_argument('--angle', type=float, default=None,
                         help='only the points at this angle (e.g. --points all --angle 1.84: '
                              'the 1.84 rad column)')
-    parser.add_argument('--also', nargs='*', default=[], metavar='HZ/ITERATIONS',
+    parser.add_argument('--also', nargs='*', default=[], metavar='HZ/ITERATIONS[/ERP]',
                         help='more fine settings to run beside the reference (e.g. '
                              '960/120 720/60): how much equally fine settings differ')
     parser.add_argument('--factor', type=int, default=4, help="the reference's refinement")
@@ -134,11 +134,10 @@ def main() -> int:
         configs['reference'] = {'rate_hz': own.rate_hz * args.factor,
                                 'solver_iterations': own.solver_iterations * args.factor}
         if args.erp_per_second:
-            configs['reference'].update({name: getattr(own, name) / args.factor for name in
-                                         ('erp', 'contact_erp', 'friction_erp')})
+            configs['reference'].update({name: getattr(own, name) / args.factor
+                                         for name in harness.ERP_SETTINGS})
     for also in args.also:
-        rate, iterations = (int(v) for v in also.split('/'))
-        configs[also] = {'rate_hz': rate, 'solver_iterations': iterations}
+        configs[also] = harness.physics_setting(also)
     points = {'four': POINTS, 'misses': MISSES}.get(args.points) or [
         (a, h, x) for x, h, a in itertools.product(
             paper.POUR_POSITIONS, paper.POUR_TIMES, paper.POUR_ANGLES)]

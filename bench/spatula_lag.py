@@ -69,11 +69,6 @@ def turn(angle: float, physics: dict, bags: Path) -> dict:
     return {'ok': ok, 'rows': rows}
 
 
-def _physics(text: str) -> dict:
-    rate, iterations = text.split('/')
-    return {'rate_hz': int(rate), 'solver_iterations': int(iterations)}
-
-
 def main() -> None:
     parser = harness.arguments(__doc__)
     parser.add_argument('--physics', nargs='+', default=['240/20', '480/40', '960/80'])
@@ -86,7 +81,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for angle in (float(a) for a in args.angles.split(',')):
             for text in args.physics:
-                r = turn(angle, _physics(text), Path(tmp))
+                r = turn(angle, harness.physics_setting(text), Path(tmp))
                 cells = []
                 for phase in PHASES:
                     a = np.asarray(r['rows'][phase]) if r['rows'][phase] else np.zeros((1, 4))

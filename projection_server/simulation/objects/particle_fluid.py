@@ -57,16 +57,16 @@ def build(physics: Physics, entity: Entity) -> None:
     else:
         positions = _block(entity.pose.xyz, count, radius)
     shape = c.createCollisionShape(c.GEOM_SPHERE, radius=radius)
-    turning = [_sphere_inertia(p) * p['rotational_inertia']] * 3
+    dynamics = {'rollingFriction': p['rolling_friction'],
+                'spinningFriction': p['spinning_friction'],
+                'linearDamping': p['damping'], 'angularDamping': p['damping']}
+    if p['rotational_inertia'] != 1.0:
+        dynamics['localInertiaDiagonal'] = [_sphere_inertia(p) * p['rotational_inertia']] * 3
     fluid = physics.add_fluid(Fluid(entity.name, radius, []))
     for i, position in enumerate(positions):
         body = c.createMultiBody(p['particle_mass'], shape, -1, position)
         surface(c, body, p)
-        c.changeDynamics(body, -1, rollingFriction=p['rolling_friction'],
-                         spinningFriction=p['spinning_friction'],
-                         linearDamping=p['damping'], angularDamping=p['damping'])
-        if p['rotational_inertia'] != 1.0:
-            c.changeDynamics(body, -1, localInertiaDiagonal=turning)
+        c.changeDynamics(body, -1, **dynamics)
         fluid.body_ids.append(body)
         physics.add_body(Body(f'{entity.name}_{i}', entity.cls, body, False, None,
                               group=entity.name))
