@@ -374,3 +374,42 @@ def test_the_figure_6_plot_is_drawn_from_a_pours_bag(pour, tmp_path):
     run = Run((0.0, 1.0, 2.14), value, timeline['meta']['bag'], 4.0, [], 1.0)
     png = pca_png(TABLE_II_POURING, [run], tmp_path / 'pca.png')
     assert png.read_bytes().startswith(b'\x89PNG\r\n\x1a\n') and png.stat().st_size > 5000
+
+
+def test_the_particles_velocities_are_their_positions_change_over_a_step():
+    """Physics.particle_state gives a fluid's velocities as its particles' positions' change
+    over the last step (not read from Bullet) whenever it read them a step before; they must
+    be Bullet's own velocities, through a cohesive, viscous pour from a moving cup."""
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+    from projection_server.settings import load_settings
+    from projection_server.simulation.world import build_world
+
+    scenario = copy.deepcopy(POURING)
+    scenario['entities'][1]['parts'][0]['properties'].update(
+        particle_count=120, rolling_friction=0.0, spinning_friction=0.0,
+        rotational_inertia=10000.0, surface_tension=0.15, viscosity=60.0)
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        settings = load_settings().for_projection('pour')
+        world = parse_scenario(scenario)
+        physics = build_world(client, world, settings)
+        task = get_program('pour').create(physics, world,
+                                          {'angle': 2.14, 'time': 0.0, 'position': 0.0},
+                                          np.random.default_rng(0))
+        ids = physics.fluids['pancake_mix1'].body_ids
+        control, worst, fastest, derived = settings.control.steps_per_control, 0.0, 0.0, 0
+        for step in range(round(4.0 * settings.physics.rate_hz)):
+            if step % control == 0:
+                task.control(physics)
+            physics.step()   # the batter's hook reads the state each step
+            _, v = physics.particle_state('pancake_mix1', velocities=True)
+            derived += physics._fluid_states['pancake_mix1'][3] is not None
+            bullet = np.array([client.getBaseVelocity(i)[0] for i in ids])
+            worst = max(worst, float(np.abs(v - bullet).max()))
+            fastest = max(fastest, float(np.abs(bullet).max()))
+    finally:
+        client.disconnect()
+    assert fastest > 0.15           # the batter flowed out of the cup
+    assert derived == step          # every step but the first
+    assert worst < 1e-9, worst

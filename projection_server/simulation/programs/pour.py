@@ -78,6 +78,7 @@ class Pour:
             for body in fluid.body_ids:
                 position, quat = c.getBasePositionAndOrientation(body)
                 c.resetBasePositionAndOrientation(body, np.asarray(position) + shift, quat)
+        physics.particles_moved()
         upright = c.getQuaternionFromEuler((0.0, 0.0, 0.0))
         c.resetBasePositionAndOrientation(self._cup, self._centre, upright)
         self._constraint = c.createConstraint(
