@@ -63,6 +63,41 @@ def test_the_report_links_valid_png_files(quick_table_i):
         assert len(data) > 1000, name
 
 
+def test_experiments_run_at_once_print_their_lines_experiment_by_experiment(client, tmp_path):
+    """Both queries are sent at once; the second's lines are held until the first's are
+    out, whichever finishes first, and both tables reach the report."""
+    from projection_server.reproduce import reproduce
+    from projection_server.reproduce.experiments import TABLE_I_GRASPING
+    again = dataclasses.replace(TABLE_I_GRASPING, key='table1_again',
+                                title='TABLE I again: grasping an egg')
+    lines: list[str] = []
+    results, report = reproduce(client, tmp_path, quick=True, frames=False, timeout=120.0,
+                                experiments=[TABLE_I_GRASPING, again], say=lines.append)
+    first = [k for k, line in enumerate(lines) if line.startswith('TABLE I: grasping')]
+    second = [k for k, line in enumerate(lines) if line.startswith('TABLE I again')]
+    assert len(first) == len(second) == 2   # the progress heading and the table
+    assert max(first) < min(second)
+    assert [run.value for run in results[0].runs] == [run.value for run in results[1].runs]
+    assert '## TABLE I again: grasping an egg' in report.read_text()
+
+
+def test_lines_said_at_once_come_out_in_the_experiments_order():
+    from projection_server.reproduce.run import _InOrder
+    said: list[str] = []
+    lines = _InOrder(3, said.append)
+    a, b, c = (lines.channel(k) for k in range(3))
+    c('c1')
+    b('b1')
+    a('a1')
+    lines.done(2)
+    assert said == ['a1']
+    b('b2')
+    lines.done(0)
+    assert said == ['a1', 'b1', 'b2']
+    lines.done(1)
+    assert said == ['a1', 'b1', 'b2', 'c1']
+
+
 def test_an_experiment_whose_program_is_not_registered_is_skipped(client, tmp_path):
     from projection_server.reproduce import run_experiment
     from projection_server.reproduce.experiments import TABLE_II_POURING

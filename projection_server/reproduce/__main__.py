@@ -43,6 +43,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--timeout', type=float, default=900.0,
                         help='seconds one solution (projection) may take')
     parser.add_argument('--no-frames', action='store_true', help='skip rendering key frames')
+    parser.add_argument('--sequential', action='store_true',
+                        help="send one experiment's query at a time (default: all at once, "
+                             'their tables printed in order)')
     parser.add_argument('--reference', action='store_true',
                         help='run each experiment again at a 4x finer time step (4x the '
                              'solver iterations) and report the agreement with it')
@@ -69,7 +72,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             with _server(client, args.server, args.out / 'bags', args.timeout) as own:
                 reproduce(client, args.out, quick=args.quick, experiments=experiments,
                           timeout=args.timeout, frames=not args.no_frames,
-                          reference=args.reference, say=_say)
+                          reference=args.reference, concurrent=not args.sequential,
+                          say=_say)
         finally:
             # Our own node has finished our queries and is gone: asking it again would
             # wait out the client's service timeout (10 s) for nothing.
