@@ -443,15 +443,15 @@ class Physics:
         When the positions were also read one step before (as the batter's hooks do each
         step), the velocities are the positions' change over the step, not read: Bullet
         moves a multibody's base by its new velocity times the step and corrects no
-        position after, so the two agree to rounding (``test_batter`` checks it over a
-        pour), and the 300 ``getBaseVelocity`` calls were 5 % of a pour. Code that moves
+        position after, so the two agree to rounding (``test_pour`` checks it over a pour),
+        and the 300 ``getBaseVelocity`` calls were 5 % of a pour. Code that moves
         particles between steps must call :meth:`particles_moved`."""
         state = self._fluid_states.get(fluid)
         if state is None or state[0] != self.step_count:
             get = self.client.getBasePositionAndOrientation
             positions = _rows([get(i)[0] for i in self.fluids[fluid].body_ids])
-            # Only positions read after two steps of this world's clock: before the first,
-            # the world is settled and the task may place the particles.
+            # Never from positions read at step 0: the world settles and the task may place
+            # the particles after them.
             before = (state[1] if state is not None and state[0] == self.step_count - 1
                       and state[0] >= 1 else None)
             state = self._fluid_states[fluid] = (self.step_count, positions, None, before)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
 from dataclasses import astuple
 import math
@@ -233,24 +234,33 @@ def test_the_positions_of_the_particles_on_the_maker_are_in_the_timeline(pour):
          measure(timeline, 'centroid_offset_y', 'pancake_maker1')])
 
 
-def _cup_tilts(rate_hz, angle=1.99, hold=0.0, count=10):
-    """(commanded, actual) tilt of the cup at every 60 Hz sample of a pour at ``rate_hz``,
-    and the simulated seconds at which the pour said it had finished (None: never)."""
+@contextlib.contextmanager
+def _pour_world(scenario, params, physics=None):
+    """``(physics, task)``: a pour of ``scenario`` (a description) with ``params``, its
+    world in a PyBullet client of its own (``physics``: settings over the pour's)."""
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
     from projection_server.settings import load_settings
     from projection_server.simulation.world import build_world
 
-    scenario = copy.deepcopy(POURING)
-    scenario['entities'][1]['parts'][0]['properties']['particle_count'] = count
     client = BulletClient(connection_mode=pybullet.DIRECT)
     try:
-        settings = load_settings().for_projection('pour', {'rate_hz': rate_hz})
         world = parse_scenario(scenario)
-        physics = build_world(client, world, settings)
-        task = get_program('pour').create(physics, world,
-                                          {'angle': angle, 'time': hold, 'position': 0.0},
-                                          np.random.default_rng(0))
+        built = build_world(client, world, load_settings().for_projection('pour', physics))
+        yield built, get_program('pour').create(built, world, params,
+                                                np.random.default_rng(0))
+    finally:
+        client.disconnect()
+
+
+def _cup_tilts(rate_hz, angle=1.99, hold=0.0, count=10):
+    """(commanded, actual) tilt of the cup at every 60 Hz sample of a pour at ``rate_hz``,
+    and the simulated seconds at which the pour said it had finished (None: never)."""
+    scenario = copy.deepcopy(POURING)
+    scenario['entities'][1]['parts'][0]['properties']['particle_count'] = count
+    with _pour_world(scenario, {'angle': angle, 'time': hold, 'position': 0.0},
+                     {'rate_hz': rate_hz}) as (physics, task):
+        client, settings = physics.client, physics.settings
         cup = physics.body('cup1').body_id
         control, log = settings.control.steps_per_control, settings.control.steps_per_log
         tilts, finished = [], None
@@ -266,8 +276,6 @@ def _cup_tilts(rate_hz, angle=1.99, hold=0.0, count=10):
                               math.atan2(POUR_SIDE * rotation[2], rotation[8])))
                 if finished is None and task.finished(physics):
                     finished = physics.time
-    finally:
-        client.disconnect()
     return np.array(tilts), finished
 
 
@@ -322,28 +330,16 @@ def test_the_measures_of_a_pour_converge_at_a_2x_finer_step(pool):
 def test_the_contacts_of_a_pour_are_those_of_all_points_without_particle_pairs():
     # Physics.contacts asks Bullet body by body so as not to build the thousands of
     # particle-particle points of each sample; the samples must be the same.
-    import pybullet
-    from pybullet_utils.bullet_client import BulletClient
-    from projection_server.settings import load_settings
-    from projection_server.simulation.world import build_world
-
-    client = BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        settings = load_settings().for_projection('pour')
-        scenario = parse_scenario(POURING)
-        physics = build_world(client, scenario, settings)
-        task = get_program('pour').create(physics, scenario,
-                                          {'angle': 2.14, 'time': 0.0, 'position': -0.09},
-                                          np.random.default_rng(0))
+    with _pour_world(POURING, {'angle': 2.14, 'time': 0.0, 'position': -0.09}) as (
+            physics, task):
+        settings = physics.settings
         for step in range(int(2.6 * settings.physics.rate_hz)):   # the stream has landed
             if step % settings.control.steps_per_control == 0:
                 task.control(physics)
             physics.step()
         fast = physics.contacts()
-        physics._contact_points = client.getContactPoints
+        physics._contact_points = physics.client.getContactPoints
         every = physics.contacts()
-    finally:
-        client.disconnect()
     assert [c[:4] for c in map(astuple, fast)] == [c[:4] for c in map(astuple, every)]
     assert {c.body_a for c in fast} >= {'cup1', 'pancake_maker1'}
     assert any(c.body_a == c.body_b == 'pancake_mix1' for c in every) is False
@@ -380,23 +376,13 @@ def test_the_particles_velocities_are_their_positions_change_over_a_step():
     """Physics.particle_state gives a fluid's velocities as its particles' positions' change
     over the last step (not read from Bullet) whenever it read them a step before; they must
     be Bullet's own velocities, through a cohesive, viscous pour from a moving cup."""
-    import pybullet
-    from pybullet_utils.bullet_client import BulletClient
-    from projection_server.settings import load_settings
-    from projection_server.simulation.world import build_world
-
     scenario = copy.deepcopy(POURING)
     scenario['entities'][1]['parts'][0]['properties'].update(
         particle_count=120, rolling_friction=0.0, spinning_friction=0.0,
         rotational_inertia=10000.0, surface_tension=0.15, viscosity=60.0)
-    client = BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        settings = load_settings().for_projection('pour')
-        world = parse_scenario(scenario)
-        physics = build_world(client, world, settings)
-        task = get_program('pour').create(physics, world,
-                                          {'angle': 2.14, 'time': 0.0, 'position': 0.0},
-                                          np.random.default_rng(0))
+    with _pour_world(scenario, {'angle': 2.14, 'time': 0.0, 'position': 0.0}) as (
+            physics, task):
+        client, settings = physics.client, physics.settings
         ids = physics.fluids['pancake_mix1'].body_ids
         control, worst, fastest, derived = settings.control.steps_per_control, 0.0, 0.0, 0
         for step in range(round(4.0 * settings.physics.rate_hz)):
@@ -408,8 +394,6 @@ def test_the_particles_velocities_are_their_positions_change_over_a_step():
             bullet = np.array([client.getBaseVelocity(i)[0] for i in ids])
             worst = max(worst, float(np.abs(v - bullet).max()))
             fastest = max(fastest, float(np.abs(bullet).max()))
-    finally:
-        client.disconnect()
     assert fastest > 0.15           # the batter flowed out of the cup
     assert derived == step          # every step but the first
     assert worst < 1e-9, worst
