@@ -20,7 +20,9 @@ pour, its steps and milliseconds per step, the medians of the forces' and the he
 own CPU per step, and the ratios of the medians. With ``--before`` also the pour as it was
 before the batter cohered and heated (no batter hooks, the cup tilted at 2 rad/s without
 ramps, 20 solver iterations, the mix's drops held from rolling by a rolling friction of
-0.02 m): ``now / before`` is what the batter and the slower pour cost together. With
+0.02 m): ``now / before`` is what the batter and the slower pour cost together. With ``--read`` also this
+pour with the velocities read from Bullet each step (``now / read``: what taking them from
+the positions saves). With
 ``--rolling`` also the cohesive batter held from rolling that way, at the 100 iterations it
 needed (``now / rolling``: what the drops' ``rotational_inertia`` saves).
 """
@@ -181,6 +183,9 @@ def main() -> int:
     parser.add_argument('--rolling', action='store_true',
                         help='also the pour of the batter held from rolling by rolling '
                              'friction, at the 100 solver iterations it needed')
+    parser.add_argument('--read', action='store_true',
+                        help="also the pour with the particles' velocities read from Bullet "
+                             'each step, as before they were taken from the positions')
     parser.add_argument('--old', default='7b89c6c',
                         help='the revision of the batter modules to compare with')
     args = parser.parse_args()
@@ -211,6 +216,15 @@ def main() -> int:
                                           {'solver_iterations': 20}),
                               now, True,
                               {'TILT_RATE': 2.0, 'TILT_ACCEL': 1e9})
+    if args.read:
+        class ReadForces(BatterForces):
+            # Forgetting the last step's positions makes particle_state ask Bullet for the
+            # velocities, as it did before 08441e0.
+            def __call__(self):
+                self._physics.particles_moved()
+                super().__call__()
+
+        variants['read'] = (cohesive, (ReadForces, BatterHeat), False, None)
     if args.rolling:
         # The cohesive batter as it was until its drops slid by their inertia: held from
         # rolling by rolling friction, poured with the 100 solver iterations it needed.
@@ -284,6 +298,9 @@ def main() -> int:
         print(f'now / before: pour {ratio("now", "before", 0)}, step '
               f'{ratio("now", "before", 1)} ({med["now"][0]:.2f} against '
               f'{med["before"][0]:.2f} s a pour)')
+    if 'read' in med:
+        print(f'now / read: pour {ratio("now", "read", 0)}, step {ratio("now", "read", 1)}, '
+              f'forces {ratio("now", "read", 2)}')
     if 'rolling' in med:
         print(f'now / rolling: pour {ratio("now", "rolling", 0)}, step '
               f'{ratio("now", "rolling", 1)} ({med["now"][0]:.2f} against '
