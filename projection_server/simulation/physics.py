@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import functools
 import itertools
 import math
-from typing import Any, Callable, Protocol, TYPE_CHECKING
+from typing import Any, Callable, NamedTuple, Protocol, TYPE_CHECKING
 
 import numpy as np
 
@@ -92,6 +92,16 @@ class Fluid:
     radius: float
     body_ids: list[int]
     color: tuple[float, float, float, float] = (0.95, 0.9, 0.6, 1.0)
+
+
+class _FluidState(NamedTuple):
+    """A fluid's particles as read at step ``step`` (velocities None until asked for), and
+    their positions one step before (None: not read then, or moved since)."""
+
+    step: int
+    positions: np.ndarray
+    velocities: np.ndarray | None
+    before: np.ndarray | None
 
 
 @dataclass(frozen=True)
@@ -310,10 +320,9 @@ class Physics:
         self.bodies_version = 0   # changes whenever a body or fluid is added or replaced
         self._names: dict[int, str] = {}
         self._step_contacts: dict[int, Any] = {}   # body id -> its contact points this step
-        # fluid -> (step, positions, velocities or None, the previous step's positions or
-        # None): read once per step, however many step hooks and samples want them
-        self._fluid_states: dict[str, tuple[int, np.ndarray, np.ndarray | None,
-                                            np.ndarray | None]] = {}
+        # fluid -> its particles, read once per step however many step hooks and samples
+        # want them
+        self._fluid_states: dict[str, _FluidState] = {}
         # (fluid, skin) -> the Verlet lists of its particles that the step hooks share
         self._neighbour_lists: dict[tuple[str, float], NeighbourLists] = {}
         # (bodies_version, {(body, link): (body name, link name)}) of contacts()
@@ -447,22 +456,23 @@ class Physics:
         and the 300 ``getBaseVelocity`` calls were 5 % of a pour. Code that moves
         particles between steps must call :meth:`particles_moved`."""
         state = self._fluid_states.get(fluid)
-        if state is None or state[0] != self.step_count:
+        if state is None or state.step != self.step_count:
             get = self.client.getBasePositionAndOrientation
             positions = _rows([get(i)[0] for i in self.fluids[fluid].body_ids])
             # Never from positions read at step 0: the world settles and the task may place
             # the particles after them.
-            before = (state[1] if state is not None and state[0] == self.step_count - 1
-                      and state[0] >= 1 else None)
-            state = self._fluid_states[fluid] = (self.step_count, positions, None, before)
-        if velocities and state[2] is None:
-            if state[3] is not None:
-                speeds = (state[1] - state[3]) * self.settings.physics.rate_hz
+            before = (state.positions if state is not None and state.step >= 1
+                      and state.step == self.step_count - 1 else None)
+            state = self._fluid_states[fluid] = _FluidState(self.step_count, positions, None,
+                                                            before)
+        if velocities and state.velocities is None:
+            if state.before is not None:
+                speeds = (state.positions - state.before) * self.settings.physics.rate_hz
             else:
                 get = self.client.getBaseVelocity
                 speeds = _rows([get(i)[0] for i in self.fluids[fluid].body_ids])
-            state = self._fluid_states[fluid] = state[:2] + (speeds, state[3])
-        return state[1], state[2]
+            state = self._fluid_states[fluid] = state._replace(velocities=speeds)
+        return state.positions, state.velocities
 
     def particles_moved(self) -> None:
         """Forget the particles' positions read so far: they were moved, not stepped."""

@@ -390,7 +390,7 @@ def test_the_particles_velocities_are_their_positions_change_over_a_step():
                 task.control(physics)
             physics.step()   # the batter's hook reads the state each step
             _, v = physics.particle_state('pancake_mix1', velocities=True)
-            derived += physics._fluid_states['pancake_mix1'][3] is not None
+            derived += physics._fluid_states['pancake_mix1'].before is not None
             bullet = np.array([client.getBaseVelocity(i)[0] for i in ids])
             worst = max(worst, float(np.abs(v - bullet).max()))
             fastest = max(fastest, float(np.abs(bullet).max()))
