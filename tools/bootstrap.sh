@@ -9,6 +9,7 @@
 #     swipl-<version>-<sha8>/     SWI-Prolog built from Debian's source tarball
 #     venv-<key>/                 Python venv: ROS 2 Jazzy wheels, pybullet, rosbags, janus-swi
 #     interfaces-<key>/           the msg_defs interface package, built with rosidl
+#     tf2_msgs-<key>/             msg_defs/tf2_msgs, where no tf2_msgs can be imported
 # Per checkout: install/ holds this package (ament layout), keyed by its sources.
 # tools/env.sh prints the environment that ties these together.
 set -euo pipefail
@@ -120,20 +121,35 @@ if [ ! -f "$venv/.complete" ]; then
   touch "$venv/.complete"
 fi
 
-# --- 4. Interface package (msg_defs) ----------------------------------------------------
-ifc_key=$( (cd "$root/msg_defs" && find . -type f | LC_ALL=C sort | xargs sha256sum; echo "$venv_key") | sha)
-ifc_prefix="$CACHE_DIR/interfaces-$ifc_key"
-if [ ! -f "$ifc_prefix/.complete" ]; then
-  log "building interface package msg_defs"
-  rm -rf "$ifc_prefix"
+# --- 4. Interface packages (msg_defs, and tf2_msgs where none is installed) ---------------
+# build_interfaces NAME SRC PREFIX: an ament_cmake interface package built with rosidl.
+build_interfaces() {
+  local name=$1 src=$2 prefix=$3 build
+  log "building interface package $name"
+  rm -rf "$prefix"
   build=$(mktemp -d)
   (cd "$build" && PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" \
-     cmake "$root/msg_defs" -DCMAKE_PREFIX_PATH="$venv" -DPython3_EXECUTABLE="$venv/bin/python" \
-       -DCMAKE_INSTALL_PREFIX="$ifc_prefix" -DBUILD_TESTING=OFF >"$build/cmake.log" 2>&1 &&
+     cmake "$src" -DCMAKE_PREFIX_PATH="$venv" -DPython3_EXECUTABLE="$venv/bin/python" \
+       -DCMAKE_INSTALL_PREFIX="$prefix" -DBUILD_TESTING=OFF >"$build/cmake.log" 2>&1 &&
      PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" make -j2 install >"$build/make.log" 2>&1) || {
-    log "interface build failed; last lines of its logs:"; tail -n 40 "$build"/*.log >&2; exit 1; }
-  touch "$ifc_prefix/.complete"
+    log "$name build failed; last lines of its logs:"; tail -n 40 "$build"/*.log >&2; exit 1; }
+  touch "$prefix/.complete"
   rm -rf "$build"
+}
+ifc_key=$( (cd "$root/msg_defs" && find . -path ./tf2_msgs -prune -o -type f -print |
+  LC_ALL=C sort | xargs sha256sum; echo "$venv_key") | sha)
+ifc_prefix="$CACHE_DIR/interfaces-$ifc_key"
+[ -f "$ifc_prefix/.complete" ] || build_interfaces msg_defs "$root/msg_defs" "$ifc_prefix"
+
+# A ROS 2 install the user has sourced brings its own tf2_msgs: use that one. Importing the
+# message class is not enough (a Python-only copy would import); its C type support must load.
+tf2_prefix=
+if ! "$venv/bin/python" -c 'from tf2_msgs.msg import TFMessage
+TFMessage.__class__.__import_type_support__()' >/dev/null 2>&1; then
+  tf2_key=$( (cd "$root/msg_defs/tf2_msgs" && find . -type f | LC_ALL=C sort | xargs sha256sum
+    echo "$venv_key") | sha)
+  tf2_prefix="$CACHE_DIR/tf2_msgs-$tf2_key"
+  [ -f "$tf2_prefix/.complete" ] || build_interfaces tf2_msgs "$root/msg_defs/tf2_msgs" "$tf2_prefix"
 fi
 
 # --- 5. This package, installed into the checkout's install/ prefix -----------------------
@@ -156,5 +172,6 @@ cat >"$root/.env.paths" <<ENV
 SWIPL_PREFIX=$swipl_prefix
 VENV=$venv
 IFC_PREFIX=$ifc_prefix
+TF2_PREFIX=$tf2_prefix
 INSTALL_PREFIX=$install_prefix
 ENV
