@@ -291,3 +291,13 @@ def test_a_joint_state_outside_its_limits_is_a_domain_error_naming_it(ask, graph
 def test_the_node_serves_on_after_the_errors(ask, graph):
     assert solutions(ask('X = 1')) == [{'X': 1}]
     solutions(ask(f'robot_world(S, [{ENTITIES}])'))
+
+
+def test_the_panda_grasps_and_lifts_the_egg_from_where_the_snapshot_found_both(ask, graph):
+    [s] = solutions(ask(f'''robot_world(S, [{ENTITIES}]),
+        make_projection(S, plan([move_to(egg1, [0, 0, 0.10], [orientation(top), speed(0.5)]),
+                                 move_to(egg1, [0, 0, 0], [speed(0.1)]), close_gripper(5),
+                                 wait(0.3), move_by([0, 0, 0.1]), wait(0.5)]), [], TL),
+        findall(E, occurs(E, _, TL), Es)''', timeout=120.0))
+    events = [e if isinstance(e, str) else e['functor'] for e in s['Es']]
+    assert 'lift' in events and 'slip' not in events and 'break' not in events, s['Es']
