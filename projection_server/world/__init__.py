@@ -10,14 +10,17 @@
 
 from __future__ import annotations
 
+import json
 import threading
 import time
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
-from projection_server.world.snapshot import NotYet, Options, take, WorldError
-from projection_server.world.state import RobotWorld
+if TYPE_CHECKING:
+    from projection_server.world.state import RobotWorld
 
-__all__ = ['RobotWorld', 'current', 'set_current', 'snapshot']
+# What robot_world/2 calls imports numpy only when there is a world to read: Prolog loads
+# this module also where no simulator is installed (its own unit tests).
+__all__ = ['bag_scenario', 'current', 'set_current', 'snapshot']
 
 _lock = threading.Lock()
 _current: RobotWorld | None = None
@@ -49,10 +52,12 @@ def snapshot(options: dict[str, Any], deadline: float) -> dict[str, Any]:
     """
     world = current()
     if world is None:
-        return {'status': 'error', 'error': WorldError(
-            'existence_error', 'robot_world', 'ros_graph',
-            'this process reads no robot world: robot_world/2 runs in the projection_server '
-            'node').as_dict()}
+        return {'status': 'error', 'error': {
+            'formal': 'existence_error', 'type': 'robot_world', 'culprit': 'ros_graph',
+            'message': 'this process reads no robot world: robot_world/2 runs in the '
+                       'projection_server node (with its parameter robot_world true)'}}
+    from projection_server.world.snapshot import NotYet, Options, take, WorldError
+
     opts = Options(world_frame=str(options.get('world_frame', 'map')).lstrip('/'),
                    frames=tuple(str(f).lstrip('/') for f in options.get('frames', ())),
                    max_age=float(options.get('max_age', 1.0)))
@@ -66,3 +71,18 @@ def snapshot(options: dict[str, Any], deadline: float) -> dict[str, Any]:
         return {'status': 'waiting'}
     except WorldError as exc:
         return {'status': 'error', 'error': exc.as_dict()}
+
+
+def bag_scenario(bag: str) -> dict[str, Any]:
+    """The scenario description a projection's bag was made from (its ``/projection/info``),
+    for ``bag_scenario/2``.
+
+    Raises:
+        ProjectionError: kind ``bag_error`` for a bag without one.
+    """
+    from projection_server.bags.reader import read_bag
+    from projection_server.errors import ErrorKind, ProjectionError
+
+    for _, _, info in read_bag(bag, ['/projection/info']):
+        return json.loads(info.scenario_json)
+    raise ProjectionError(ErrorKind.BAG_ERROR, f'{bag} has no /projection/info')
