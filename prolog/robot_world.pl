@@ -156,7 +156,7 @@ py_options(World, Frames, MaxAge, _{world_frame: WorldS, frames: FrameStrings, m
 % 0.1 s (projection_server.world.WAIT_SLICE) so that a query's time limit or
 % cancel stops the wait.
 take(Options, Deadline, Snapshot) :-
-    py_call('projection_server.world':snapshot(Options, Deadline), Answer,
+    py_call('projection_server.world':try_snapshot(Options, Deadline), Answer,
             [py_string_as(string)]),
     get_dict(status, Answer, Status),
     (   Status == "ok"

@@ -5,7 +5,7 @@
 * :mod:`.description`: a URDF received as text, its meshes resolved, written as a file;
 * :mod:`.snapshot`: what a scenario is made of, frozen at one time (pure);
 * :mod:`.listener`: the node's subscriptions (ROS);
-* :func:`snapshot`: what ``robot_world/2`` (``prolog/robot_world.pl``) calls.
+* :func:`try_snapshot`: what ``robot_world/2`` (``prolog/robot_world.pl``) calls.
 """
 
 from __future__ import annotations
@@ -20,18 +20,18 @@ if TYPE_CHECKING:
 
 # What robot_world/2 calls imports numpy only when there is a world to read: Prolog loads
 # this module also where no simulator is installed (its own unit tests).
-__all__ = ['bag_scenario', 'current', 'set_current', 'snapshot']
+__all__ = ['bag_scenario', 'current', 'set_current', 'try_snapshot']
 
 _lock = threading.Lock()
 _current: RobotWorld | None = None
 
-# The longest one call of snapshot() waits: Prolog calls it again until its own deadline,
+# The longest one call of try_snapshot() waits: Prolog calls it again until its own deadline,
 # so that a query's time limit or cancel can stop it between calls.
 WAIT_SLICE = 0.1
 
 
 def set_current(world: RobotWorld | None) -> None:
-    """Make ``world`` the one :func:`snapshot` reads (the node's; None: none)."""
+    """Make ``world`` the one :func:`try_snapshot` reads (the node's; None: none)."""
     global _current
     with _lock:
         _current = world
@@ -42,7 +42,7 @@ def current() -> RobotWorld | None:
         return _current
 
 
-def snapshot(options: dict[str, Any], deadline: float) -> dict[str, Any]:
+def try_snapshot(options: dict[str, Any], deadline: float) -> dict[str, Any]:
     """One try at a snapshot of the current world with ``options`` (``world_frame``,
     ``frames``, ``max_age``), waiting at most :data:`WAIT_SLICE` for what has not arrived.
 
