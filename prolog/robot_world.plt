@@ -1,6 +1,7 @@
 :- begin_tests(robot_world).
 :- use_module(robot_world).
 :- use_module(scenario).
+:- use_module(knowledge_base, [kb_urdf_robot/2, kb_entity_frame/2]).
 
 % Outside the node no subscriptions feed a robot world: a named error, not a wait.
 test(no_world_outside_the_node, error(existence_error(robot_world, ros_graph), _)) :-
@@ -37,5 +38,15 @@ test(a_description_makes_the_scenario_again) :-
 
 test(a_description_without_entities, error(type_error(scenario_description, _), _)) :-
     create_scenario_from(_{name: x}, _).
+
+% The Panda's facts ship, keyed by its URDF's robot name.
+test(the_pandas_facts_are_keyed_by_its_urdf_name, R == panda_robot) :-
+    kb_urdf_robot(panda, R).
+
+test(no_facts_of_an_unknown_urdf_robot, fail) :-
+    kb_urdf_robot(no_such_robot, _).
+
+test(no_entity_of_the_kitchen_has_a_frame_of_its_own, fail) :-
+    kb_entity_frame(egg1, _).
 
 :- end_tests(robot_world).
