@@ -42,6 +42,8 @@ def main() -> None:
     parser = harness.arguments(__doc__, repeat=5)
     parser.add_argument('--snapshots', type=int, default=50, help='snapshots timed')
     parser.add_argument('--grasps', type=int, default=4, help='grasps a round, each side')
+    parser.add_argument('--rate', type=float, default=100.0,
+                        help='Hz of the robot graph\'s /joint_states and /tf')
     args = parser.parse_args()
     harness.ros_domain(160)
     import rclpy
@@ -50,21 +52,27 @@ def main() -> None:
     panda = PANDA.format(names=list(JOINTS), values=list(JOINTS.values()),
                          base=list(BASE[0]))
     typed = TYPED.format(panda=panda, egg=list(EGG[0]))
-    print(f'settings: {args.snapshots} snapshots; {args.repeat} rounds of {args.grasps} '
-          f'grasps from each scenario; 1 worker; {harness.machine()}')
-    graph = RobotGraph(rclpy.create_node('bench_robot_graph'))
+    print(f'settings: {args.snapshots} snapshots, the graph at {args.rate:g} Hz; '
+          f'{args.repeat} rounds of {args.grasps} grasps from each scenario; 1 worker; '
+          f'{harness.machine()}')
+    graph = RobotGraph(rclpy.create_node('bench_robot_graph'), rate=args.rate)
     graph.frames['egg_1'] = ('map', *EGG, 0.0)
     try:
         with harness.start_node({'bag_dir': str(tmp / 'bags'), 'projection_workers': 1},
                                 tmp / 'node.log') as _, harness.client() as c:
             c.once(f'robot_world(S, [{ENTITIES}])', timeout=30.0)   # description received
-            answer = c.once(f'''findall(D, (between(1, {args.snapshots}, _), get_time(T0),
-                robot_world(S, [{ENTITIES}]), get_time(T1), delete_scenario(S),
-                D is T1 - T0), Ds)''', timeout=120.0)
-            seconds = [float(v) for v in answer['Ds']]
+            answer = c.once(f'''findall(D-A, (between(1, {args.snapshots}, _), get_time(T0),
+                robot_world(S, [{ENTITIES}]), get_time(T1), scenario_snapshot(S, Snap),
+                get_dict(age, Snap.frames.egg_1, A), delete_scenario(S), D is T1 - T0), Ds)
+                ''', timeout=120.0)
+            seconds = [float(p.args[0]) for p in answer['Ds']]
+            ages = [float(p.args[1]) for p in answer['Ds']]
             print(f'\nsnapshot (robot_world/2, call to scenario): median '
                   f'{statistics.median(seconds) * 1000:.1f} ms, max '
-                  f'{max(seconds) * 1000:.1f} ms, of {len(seconds)}')
+                  f'{max(seconds) * 1000:.1f} ms, of {len(seconds)}; the egg frame\'s age '
+                  f'in them (the listener\'s lag behind {args.rate:g} Hz of /tf and '
+                  f'/joint_states): median {statistics.median(ages) * 1000:.1f} ms, max '
+                  f'{max(ages) * 1000:.1f} ms')
             rows: dict[str, list[float]] = {'snapshot': [], 'typed': []}
             force = 4.0
             for _ in range(args.repeat):

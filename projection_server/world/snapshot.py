@@ -7,9 +7,11 @@ It is kept in the scenario (and so in every bag's ``/projection/info``), so that
 projection made from the live world can be run again, and drawn, without the robot.
 
 What is not there yet (no description, a frame no transform names, a joint with no state)
-may still arrive: :func:`take` says so (:class:`NotYet`) and its caller waits and asks
-again, until its ``wait`` runs out. What is wrong (a URDF that does not parse, a mesh not
-found, a stale frame, a joint outside its limits) is a :class:`WorldError` at once.
+or not fresh yet (a frame or joint state older than ``max_age``: a publisher may be slow, or
+the node's subscriptions behind) may still arrive: :func:`take` says so (:class:`NotYet`)
+and its caller waits and asks again, until its ``wait`` runs out. What is wrong (a URDF
+that does not parse, a mesh not found, a joint outside its limits) is a :class:`WorldError`
+at once.
 """
 
 from __future__ import annotations
@@ -67,9 +69,10 @@ def take(world: RobotWorld, options: Options) -> dict[str, Any]:
     stamps, ages, quaternions, the description's hash: JSON data).
 
     Raises:
-        NotYet: no description, an unknown frame or a joint without state, so far.
-        WorldError: a malformed description or mesh, a stale frame or joint state, a
-            joint outside its limits, frames not connected to the world frame.
+        NotYet: no description, an unknown or unconnected frame, a joint without state,
+            a stale frame or joint state, so far.
+        WorldError: a malformed description or mesh, a joint outside its limits, a time
+            outside the transforms kept.
     """
     now = world.now()
     received = world.description()
@@ -92,7 +95,7 @@ def take(world: RobotWorld, options: Options) -> dict[str, Any]:
         state = joints[name]
         age = (now - state.stamp) / 1e9
         if now - state.stamp > limit:
-            raise WorldError('domain_error', 'fresh_joint_state', name, (
+            raise NotYet('domain_error', 'fresh_joint_state', name, (
                 f'the state of joint {name} is {age:.2f} s old (max_age {options.max_age} s)'))
         joint = robot.joints[name]
         if not urdf.within_limits(joint, state.position):
@@ -106,7 +109,7 @@ def take(world: RobotWorld, options: Options) -> dict[str, Any]:
         pose, stamp = _lookup(world, options.world_frame, frame)
         age = None if stamp is None else (now - stamp) / 1e9
         if stamp is not None and now - stamp > limit:
-            raise WorldError('domain_error', 'fresh_frame', frame, (
+            raise NotYet('domain_error', 'fresh_frame', frame, (
                 f'frame {frame} is {age:.2f} s old in {options.world_frame} '
                 f'(max_age {options.max_age} s)'))
         position, quaternion = (tuple(float(v) for v in pose[0]),

@@ -90,11 +90,11 @@ class _Cache:
 
     def __init__(self, parent: str):
         self.parent = parent
-        self.static: tuple[np.ndarray, np.ndarray] | None = None
+        self.static: tuple | None = None    # (translation, rotation) as received
         self.stamps: list[int] = []
-        self.poses: list[tuple[np.ndarray, np.ndarray]] = []
+        self.poses: list[tuple] = []
 
-    def insert(self, stamp: int, pose: tuple[np.ndarray, np.ndarray], keep_ns: int) -> None:
+    def insert(self, stamp: int, pose: tuple, keep_ns: int) -> None:
         if not self.stamps or stamp > self.stamps[-1]:
             self.stamps.append(stamp)
             self.poses.append(pose)
@@ -114,7 +114,7 @@ class _Cache:
 
     def at(self, stamp: int, child: str) -> tuple[np.ndarray, np.ndarray]:
         if self.static is not None:
-            return self.static
+            return _pose(self.static)
         stamps = self.stamps
         if stamp < stamps[0] or stamp > stamps[-1]:
             side = 'before the oldest' if stamp < stamps[0] else 'after the newest'
@@ -124,10 +124,16 @@ class _Cache:
                 f'({stamps[0] / 1e9:.3f}-{stamps[-1] / 1e9:.3f} s)'))
         i = bisect.bisect_left(stamps, stamp)
         if stamps[i] == stamp:
-            return self.poses[i]
+            return _pose(self.poses[i])
         t = (stamp - stamps[i - 1]) / (stamps[i] - stamps[i - 1])
-        (p0, q0), (p1, q1) = self.poses[i - 1], self.poses[i]
+        (p0, q0), (p1, q1) = _pose(self.poses[i - 1]), _pose(self.poses[i])
         return p0 + t * (p1 - p0), _slerp(q0, q1, t)
+
+
+def _pose(raw: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """A kept transform as arrays, its quaternion normalized: done at lookup, not when it
+    arrives, since a robot sends hundreds a second and a query looks up a few."""
+    return np.asarray(raw[0], dtype=float), _normalized(raw[1])
 
 
 class TransformBuffer:
@@ -142,8 +148,7 @@ class TransformBuffer:
     def add(self, transform: Transform) -> None:
         """Keep ``transform`` (static if its stamp is None). A frame's parent is the one
         of its latest transform, as tf2's."""
-        pose = (np.asarray(transform.translation, dtype=float),
-                _normalized(transform.rotation))
+        pose = (transform.translation, transform.rotation)
         with self._lock:
             cache = self._frames.get(transform.child)
             if cache is None or cache.parent != transform.parent:
