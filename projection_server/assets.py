@@ -4,7 +4,8 @@ what they hold (for cache keys).
 A model file (a URDF, an SDF, an OBJ or an STL mesh) is named by an entity's file-valued
 property (``file`` of a ``rigid_object``; a ``urdf`` robot's may be an SDF). It resolves
 only inside the *asset directories*: the package's own (:data:`PACKAGE_ASSETS`), the
-directories the node is configured with (parameter ``asset_paths``) and ``pybullet_data``'s,
+directories the node is configured with (parameter ``asset_paths``), ``pybullet_data``'s and
+the one where robot descriptions received over ROS are written (:func:`descriptions_dir`),
 in that order, each taken with its symbolic links and ``..`` resolved (:func:`configure`,
 :func:`directories`):
 
@@ -22,7 +23,8 @@ A file's content is checked once per (path, modification time, size): a URDF mus
 with a ``<robot>`` of at least one ``<link>``, an SDF XML with an ``<sdf>`` holding a
 ``<model>`` of at least one ``<link>`` (a mesh ``<uri>`` is relative to the SDF's directory,
 with or without a leading ``/``, as PyBullet takes it), and every mesh either names must
-resolve inside the asset directories (and be well formed, for OBJ and STL); an OBJ must
+resolve inside the asset directories or a package's share directory of the ament index, as
+``package://`` names it (and be well formed, for OBJ and STL); an OBJ must
 have vertices and faces whose indices exist; an STL must be binary with a length that
 matches its triangle count, or ASCII (``solid`` ... ``facet`` ... ``vertex``).
 :func:`digest` is the content hash of a file and the meshes a URDF or SDF names: it is part
@@ -51,8 +53,10 @@ __all__ = [
     'checked',
     'configure',
     'default_directories',
+    'descriptions_dir',
     'digest',
     'directories',
+    'inside_model_roots',
     'problem',
     'read_mesh',
     'resolve',
@@ -80,9 +84,17 @@ class _Malformed(Exception):
 
 # --- the asset directories --------------------------------------------------------------
 
+def descriptions_dir() -> str:
+    """Where robot descriptions received over ROS are written as model files
+    (:mod:`projection_server.world.description`): ``$PROJECTION_SERVER_DESCRIPTIONS``,
+    else ``~/.cache/projection_server/robot_descriptions``."""
+    return os.environ.get('PROJECTION_SERVER_DESCRIPTIONS') or os.path.join(
+        os.path.expanduser('~'), '.cache', 'projection_server', 'robot_descriptions')
+
+
 def default_directories(user: Iterable[str] = ()) -> list[str]:
-    """The package's asset directory, ``user``'s and ``pybullet_data``'s (if installed),
-    in that order, resolved, each once."""
+    """The package's asset directory, ``user``'s, ``pybullet_data``'s (if installed) and
+    :func:`descriptions_dir`, in that order, resolved, each once."""
     dirs = [str(PACKAGE_ASSETS), *user]
     try:
         import pybullet_data
@@ -90,6 +102,7 @@ def default_directories(user: Iterable[str] = ()) -> list[str]:
         pass
     else:
         dirs.append(pybullet_data.getDataPath())
+    dirs.append(descriptions_dir())   # last: no relative path of a user's resolves there
     out: list[str] = []
     for d in dirs:
         real = os.path.realpath(os.path.expanduser(str(d)))
@@ -169,6 +182,20 @@ def checked(path: str, dirs: Iterable[str] | None = None) -> str:
 
 def _inside(real: str, dirs: Iterable[str]) -> bool:
     return any(real == d or real.startswith(d.rstrip(os.sep) + os.sep) for d in dirs)
+
+
+def _package_shares() -> tuple[str, ...]:
+    """The ``share`` directories of the ament index's prefixes (``AMENT_PREFIX_PATH``),
+    where ``package://`` meshes live."""
+    return tuple(os.path.realpath(os.path.join(p, 'share'))
+                 for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p)
+
+
+def inside_model_roots(real: str, dirs: Iterable[str] | None = None) -> bool:
+    """Whether the resolved path ``real`` may be read as a URDF's mesh: inside an asset
+    directory (default :func:`directories`) or a package's share directory."""
+    dirs = tuple(dirs) if dirs is not None else tuple(directories())
+    return _inside(real, dirs) or _inside(real, _package_shares())
 
 
 def _locate(path: str, dirs: tuple[str, ...]) -> str | None:
@@ -372,8 +399,8 @@ def _urdf_mesh(urdf: str, name: str, dirs: tuple[str, ...]) -> str | None:
     reals = [os.path.realpath(c) for c in candidates]
     for real in reals:
         if os.path.exists(real):
-            return real if _inside(real, dirs) else None
-    return reals[0] if _inside(reals[0], dirs) else None
+            return real if inside_model_roots(real, dirs) else None
+    return reals[0] if inside_model_roots(reals[0], dirs) else None
 
 
 # --- content digests --------------------------------------------------------------------

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-__all__ = ['quaternion_of', 'quaternion_product']
+__all__ = ['rpy_of', 'quaternion_of', 'quaternion_product']
 
 
 def quaternion_of(m: np.ndarray) -> tuple[float, float, float, float]:
@@ -29,3 +29,13 @@ def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      aw * by - ax * bz + ay * bw + az * bx,
                      aw * bz + ax * by - ay * bx + az * bw,
                      aw * bw - ax * bx - ay * by - az * bz])
+
+
+def rpy_of(q) -> tuple[float, float, float]:
+    """Roll, pitch, yaw [rad] of the quaternion ``(x, y, z, w)``: the rotation is yaw about
+    z after pitch about y after roll about x (fixed axes), as PyBullet's and URDF's rpy."""
+    x, y, z, w = (float(v) for v in q)
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return (roll, pitch, yaw)

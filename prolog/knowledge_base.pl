@@ -8,6 +8,8 @@
             kb_entity_pose/2,           % +Name, -Pose:dict
             kb_entity_parts/2,          % +Name, -Parts:list
             kb_entity_description/2,    % +Name, -Entity:dict
+            kb_urdf_robot/2,            % ?RobotName, ?Name
+            kb_entity_frame/2,          % +Name, -Frame
             kb_scenario/2,              % ?Name, -Members:list
             kb_class/1,                 % ?Class
             kb_simulator_class/2,       % +Class, -SimulatorClass
@@ -368,6 +370,37 @@ kb_entity_description(Name, _{name: Name, class: SimClass, pose: Pose,
     kb_entity_properties(Name, Properties),
     kb_entity_parts(Name, Parts),
     maplist(kb_entity_description, Parts, PartEntities).
+
+%!  kb_urdf_robot(?RobotName:atom, ?Name:atom) is nondet.
+%
+%   The robot entity Name of the knowledge base gives the facts (tool link,
+%   fingers, force limit) of a URDF whose `<robot name>` is RobotName: the
+%   annotation `kitchen:urdfRobot` of the individual.  robot_world/2 takes
+%   them for a robot description received over ROS.
+%
+%   ```
+%   ?- kb_urdf_robot(panda, R).
+%   R = panda_robot.
+%   ```
+
+kb_urdf_robot(RobotName, Name) :-
+    ensure_loaded_kb,
+    (   atom(RobotName) -> atom_string(RobotName, S) ; true ),
+    rdf(IRI, kitchen:urdfRobot, S^^xsd:string),
+    entity_iri(Name, IRI),
+    atom_string(RobotName, S).
+
+%!  kb_entity_frame(+Name:atom, -Frame:atom) is semidet.
+%
+%   The entity Name is where TF frame Frame is (its individual's annotation
+%   `kitchen:tfFrame`): robot_world/2 places it at that frame's pose.
+
+kb_entity_frame(Name, Frame) :-
+    ensure_loaded_kb,
+    entity_iri(Name, IRI),
+    rdf(IRI, kitchen:tfFrame, S^^xsd:string),
+    !,
+    atom_string(Frame, S).
 
 
                  /*******************************

@@ -10,6 +10,7 @@
 :- use_module(uncertainty).
 :- use_module(robust).
 :- use_module(search).
+:- use_module(robot_world).
 :- autoload(library(error), [must_be/2]).
 :- autoload(library(lists), [member/2]).
 
@@ -26,6 +27,7 @@ module `user`:
   - uncertainty (uncertainty.pl): outcome_probability/7
   - robust (robust.pl): robust_parametrization/7
   - search (search.pl): outcome_boundary/7, best_parametrization/8
+  - the robot's world (robot_world.pl): robot_world/2
 */
 
 %!  projection_server_init(+Options:dict) is det.
@@ -65,6 +67,7 @@ api_module(projection).
 api_module(uncertainty).
 api_module(robust).
 api_module(search).
+api_module(robot_world).
 
 % The query language is safe to call from sandboxed queries: it only changes
 % the server's own scenario and timeline stores and runs simulations.
@@ -89,6 +92,10 @@ sandbox:safe_primitive(projection:projection_program(_, _)).
 sandbox:safe_primitive(projection:projection_physics_setting(_, _, _)).
 sandbox:safe_primitive(timeline:timeline_create(_, _)).
 sandbox:safe_primitive(timeline:timeline_remove(_)).
+sandbox:safe_primitive(scenario:scenario_snapshot(_, _)).
+% Reads what the node's subscriptions received; writes a scenario and a robot description
+% (a model file under its content hash), nothing else.
+sandbox:safe_primitive(robot_world:robot_world(_, _)).
 
 % A probability's condition and the searches' Condition/Constraint are the query's own
 % goals: safe when they are (library(sandbox) checks the meta arguments).

@@ -8,7 +8,9 @@
             remove_from_scenario/2,     % +Scenario, +Name
             copy_scenario/2,            % +Scenario, -Copy
             delete_scenario/1,          % +Scenario
-            current_scenario/1          % ?Scenario
+            current_scenario/1,         % ?Scenario
+            scenario_snapshot/2,        % +Scenario, -Snapshot:dict
+            scenario_set_snapshot/2     % +Scenario, +Snapshot:dict
           ]).
 :- autoload(library(apply), [foldl/4, maplist/3]).
 :- autoload(library(error),
@@ -81,7 +83,8 @@ is safe to call from several threads.
 
 :- dynamic
     created/1,                  % created(Scenario), in creation order
-    record/3.                   % record(Scenario, Seq, Entity), by Seq
+    record/3,                   % record(Scenario, Seq, Entity), by Seq
+    snapshot/2.                 % snapshot(Scenario, Dict): what robot_world/2 read
 
 %!  create_scenario(-Scenario) is det.
 %
@@ -110,7 +113,8 @@ forget_oldest :-
     aggregate_all(count, created(_), N),
     Excess is N - Max,
     forall(limit(Excess, created(Old)),
-           ( retractall(record(Old, _, _)), retractall(created(Old)) )).
+           ( retractall(record(Old, _, _)), retractall(snapshot(Old, _)),
+             retractall(created(Old)) )).
 
 scenario_exists(S) :-
     (   created(S) -> true ; kb_scenario(S, _) ).
@@ -316,8 +320,36 @@ records(Scenario, Entities) :-
 %
 %   @error existence_error(scenario, Scenario) for an unknown scenario.
 
-scenario_description(Scenario, _{name: Scenario, entities: Entities}) :-
-    scenario_records(Scenario, Entities).
+scenario_description(Scenario, Description) :-
+    scenario_records(Scenario, Entities),
+    (   snapshot(Scenario, Snapshot)
+    ->  Description = _{name: Scenario, entities: Entities, snapshot: Snapshot}
+    ;   Description = _{name: Scenario, entities: Entities}
+    ).
+
+%!  scenario_snapshot(+Scenario, -Snapshot:dict) is semidet.
+%
+%   Snapshot is what robot_world/2 read of the robot's world when it made
+%   Scenario (or its original, for a copy): the time, the world frame, the
+%   joints' positions, the frames' poses with their stamps and ages, and the
+%   robot description's SHA-256.  Fails for a scenario made otherwise.
+
+scenario_snapshot(Scenario, Snapshot) :-
+    must_be(atom, Scenario),
+    snapshot(Scenario, Snapshot).
+
+%!  scenario_set_snapshot(+Scenario, +Snapshot:dict) is det.
+%
+%   Keep Snapshot with the created Scenario (robot_world/2 does); it is in
+%   scenario_description/2, and so in every projection's `/projection/info`.
+%
+%   @error permission_error(modify, scenario, Scenario) for a KB scenario.
+
+scenario_set_snapshot(Scenario, Snapshot) :-
+    must_be(dict, Snapshot),
+    update(( modifiable(Scenario),
+             retractall(snapshot(Scenario, _)),
+             assertz(snapshot(Scenario, Snapshot)) )).
 
 scenario_records(Scenario, Entities) :-
     must_be(atom, Scenario),
@@ -465,11 +497,12 @@ remove_(Scenario, Name) :-
 copy_scenario(Scenario, Copy) :-
     must_be(var, Copy),
     scenario_records(Scenario, Entities),
-    update(copy_(Entities, Copy)).
+    update(copy_(Scenario, Entities, Copy)).
 
-copy_(Entities, Copy) :-
+copy_(Scenario, Entities, Copy) :-
     new_scenario(Copy),
-    maplist(assert_record(Copy), Entities).
+    maplist(assert_record(Copy), Entities),
+    forall(snapshot(Scenario, Snapshot), assertz(snapshot(Copy, Snapshot))).
 
 %!  delete_scenario(+Scenario) is det.
 %
@@ -485,6 +518,7 @@ delete_scenario(Scenario) :-
 delete_(Scenario) :-
     modifiable(Scenario),
     retractall(record(Scenario, _, _)),
+    retractall(snapshot(Scenario, _)),
     retractall(created(Scenario)).
 
 %!  current_scenario(?Scenario) is nondet.

@@ -163,12 +163,13 @@ def test_the_kuka_with_its_gripper_in_pybullet_data_is_a_well_formed_sdf():
     assert assets.resolve('kuka_iiwa/kuka_with_gripper2.sdf', dirs)[0] == 'ok'
 
 
-def test_the_package_assets_and_pybullet_data_are_asset_directories():
+def test_the_package_assets_pybullet_data_and_received_descriptions_are_asset_directories():
     import pybullet_data
 
     dirs = assets.default_directories()
     assert dirs[0] == str(assets.PACKAGE_ASSETS)
-    assert dirs[-1] == os.path.realpath(pybullet_data.getDataPath())
+    assert dirs[-2] == os.path.realpath(pybullet_data.getDataPath())
+    assert dirs[-1] == os.path.realpath(assets.descriptions_dir())
     assert assets.resolve('objects/mug.urdf', dirs)[0] == 'ok'
     assert assets.resolve('glass.obj', dirs)[0] == 'ok'
 

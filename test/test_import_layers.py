@@ -19,8 +19,9 @@ STAGES = ['service', 'projection', 'workers', 'simulation', 'bags', 'timeline']
 SHARED = {'errors', 'canonical', 'settings', 'bags.schema', 'assets', 'geometry', 'lifetime'}
 # Modules of a stage that are not named as the stage: the projection layer's beliefs (it
 # draws the worlds of uncertain properties before a job is made) and selection (the
-# statistics of a robust choice).
-MEMBERS = {'beliefs': 'projection', 'selection': 'projection'}
+# statistics of a robust choice); the service's reading of the robot's world (its node
+# subscribes, Prolog's robot_world/2 makes scenarios of it).
+MEMBERS = {'beliefs': 'projection', 'selection': 'projection', 'world': 'service'}
 # Re-exports at the old paths, kept for one release; tools that drive the whole service or
 # read its bags (the renderer reads a bag and its timeline, as a worker makes it); the
 # stand-in robot, which runs plans as a worker does and translates them as its timeline.

@@ -34,12 +34,13 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 SetParametersResult)
 from std_srvs.srv import Trigger
 
-from projection_server import projection
+from projection_server import projection, world
 from projection_server.lifetime import die_with_parent, PARENT_ENV
 from projection_server.service import prolog_bridge
 from projection_server.service.project_action import ProjectActionServer
 from projection_server.service.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryEvent,
                                        QueryManager, ServerLimits)
+from projection_server.world.listener import WorldListener
 
 __all__ = ['ProjectionServerNode', 'main']
 
@@ -146,6 +147,9 @@ class ProjectionServerNode(Node):
         self._declare_string_array('asset_paths', ParameterDescriptor(
             description='Directories where model files resolve, after the package assets and '
                         'before pybullet_data (default: none)', read_only=True))
+        self.declare_parameter('robot_world', True, ParameterDescriptor(
+            description='Read robot_description, joint_states, /tf and /tf_static for '
+                        'robot_world/2', read_only=True))
         self.add_on_set_parameters_callback(self._check_parameters)
 
         bag_dir = self.get_parameter('bag_dir').value or None
@@ -165,6 +169,10 @@ class ProjectionServerNode(Node):
         projection.start()
         prolog_bridge.load(options={name: self._string_array(name)
                                     for name in ('kb_files', 'asset_paths')})
+        self.world_listener = None
+        if self.get_parameter('robot_world').value:
+            self.world_listener = WorldListener(self)
+            world.set_current(self.world_listener.world)
         self.queries = QueryManager(self._limits(), on_event=self._log_query)
 
         group = ReentrantCallbackGroup()
@@ -291,6 +299,9 @@ class ProjectionServerNode(Node):
             self.project_action.destroy()
         if hasattr(self, 'queries'):
             self.queries.shutdown()
+        if getattr(self, 'world_listener', None) is not None:
+            world.set_current(None)
+            self.world_listener.destroy()
         if hasattr(self, '_log_handler'):
             logging.getLogger('projection_server').removeHandler(self._log_handler)
         projection.shutdown()

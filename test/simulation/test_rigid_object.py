@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import pybullet
+import pybullet_data
 import pytest
 
 from projection_server import assets
@@ -16,7 +17,7 @@ from projection_server.simulation.physics import bound_client
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.world import build_world
 
-DATA = Path(assets.default_directories()[-1])   # pybullet_data
+DATA = Path(pybullet_data.getDataPath())
 GLASS = str(assets.PACKAGE_ASSETS / 'glass.obj')
 TABLE_TOP = 0.72
 KITCHEN = {'name': 'kitchen_env', 'class': 'environment', 'properties': {}, 'parts': [

@@ -20,7 +20,11 @@ The robot entity's properties:
 * ``max_force``: the grip force limit [N] (each pad pushes with at most the commanded
   force, and at most this);
 * ``home``: the arm joints' values at the start (default: the middle of each joint's
-  range).
+  range);
+* ``joint_names`` and ``joint_positions``: values of named joints at the start, over
+  ``home`` (what a snapshot of ``/joint_states`` gives, :mod:`projection_server.world`):
+  arm joints start there, prismatic fingers at the opening they give, held there until the
+  plan moves them (a mimic joint follows its drive); revolute fingers start open.
 
 Joints coupled in the URDF (``mimic``) are coupled in the simulation too, by gear
 constraints (``child = multiplier * parent + offset``), so one drive moves a linkage and
@@ -56,7 +60,8 @@ if TYPE_CHECKING:
 __all__ = ['PROPERTIES', 'URDF_ARM', 'mimic_joints']
 
 PROPERTIES = ('file', 'tool_link', 'tool_offset', 'tool_rpy', 'finger_joints', 'finger_open',
-              'finger_closed', 'pad_links', 'max_force', 'home')
+              'finger_closed', 'pad_links', 'max_force', 'home', 'joint_names',
+              'joint_positions')
 REQUIRED = ('file', 'tool_link', 'tool_offset', 'finger_joints', 'max_force')
 TRACKING_RATE = 24.0   # 1/s, as the gantry's (robots.gantry)
 COUPLING_FORCE = 100.0   # N (N m) of the gear that couples mimic joints
@@ -111,7 +116,12 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
     mimics = {} if sdf else {joints[child]: (joints[parent], multiplier, offset)
                              for child, (parent, multiplier, offset) in mimic_joints(path).items()
                              if child in joints and parent in joints}
-    held = {j: _rest(c.getJointInfo(body_id, j)) for j in sorted(kinds)
+    given = dict(zip(p.get('joint_names', ()), p.get('joint_positions', ())))
+    unknown = [n for n in given if n not in joints]
+    if unknown:
+        raise _fact(entity.name, 'joint_names', f'{file} has no joint {", ".join(unknown)}')
+    names = {j: n for n, j in joints.items()}
+    held = {j: given.get(names[j], _rest(c.getJointInfo(body_id, j))) for j in sorted(kinds)
             if kinds[j] != c.JOINT_FIXED and j not in arm and j not in fingers
             and j not in mimics}
     home = p.get('home')
@@ -120,6 +130,7 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
                     f'({", ".join(links[j] for j in arm)} move)')
     if home is None:
         home = [_middle(c.getJointInfo(body_id, j)) for j in arm]
+    home = [given.get(names[j], value) for j, value in zip(arm, home)]
     for link in range(-1, c.getNumJoints(body_id)):
         c.changeDynamics(body_id, link, lateralFriction=FRICTION)
     for joint, value in zip(arm, home):
@@ -133,8 +144,13 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
                 raise _fact(entity.name, key, 'the finger joints are prismatic: open is their '
                             'upper limit, closed 0')
         opening = sum(c.getJointInfo(body_id, j)[9] for j in fingers)
-        for finger in fingers:
-            c.resetJointState(body_id, finger, c.getJointInfo(body_id, finger)[9])
+        start = {}
+        for finger in fingers:   # open, or as given; a finger that mimics another follows it
+            parent, multiplier, offset = mimic_joints(path).get(names[finger], (None, 1.0, 0.0))
+            start[finger] = (given[names[finger]] if names[finger] in given else
+                             multiplier * given[parent] + offset if parent in given else
+                             c.getJointInfo(body_id, finger)[9])
+            c.resetJointState(body_id, finger, start[finger])
         for child, (parent, _, _) in mimics.items():
             _couple(c, body_id, parent, child, -1.0, 0.0)
         pads = p.get('pad_links') or [links[j] for j in fingers]
@@ -150,6 +166,8 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
                           driven=True, urdf=None if sdf else path))
     hand.open(hand.max_opening, speed=0.1)
     physics.grippers[entity.name] = hand
+    if not revolute and any(names[j] in given for j in fingers):
+        hand.open(sum(start.values()), speed=0.1)   # held where the snapshot found them
     tool_orientation = c.getQuaternionFromEuler(p.get('tool_rpy', (0.0, 0.0, 0.0)))
     manipulator = Arm(c, entity.name, body_id, path, 1.0, (entity.pose.xyz, orientation), arm,
                       tool, p['tool_offset'], hand, gain, tool_orientation)
@@ -163,6 +181,12 @@ def check(name: str, properties: dict[str, Any]) -> None:
     if missing:
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{name}: a urdf robot needs {", ".join(missing)}')
+    named = [key for key in ('joint_names', 'joint_positions') if key in properties]
+    if len(named) == 1:
+        raise _fact(name, named[0], 'joint_names and joint_positions come together')
+    if named and len(properties['joint_names']) != len(properties['joint_positions']):
+        raise _fact(name, 'joint_positions', f'{len(properties["joint_positions"])} values '
+                    f'for {len(properties["joint_names"])} joint names')
     given = [key for key in ('finger_open', 'finger_closed') if key in properties]
     if len(given) == 1:
         raise _fact(name, given[0], 'finger_open and finger_closed come together (or both '

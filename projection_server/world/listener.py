@@ -1,0 +1,100 @@
+"""The node's subscriptions to the robot's ROS graph, feeding a :class:`RobotWorld`.
+
+QoS as the publishers use it (robot_state_publisher, joint_state_publisher, tf2):
+
+* ``robot_description`` (``std_msgs/String``): reliable, transient local, depth 1, so a
+  description published before the node started arrives;
+* ``joint_states`` (``sensor_msgs/JointState``): best effort, depth 50, which receives from
+  reliable and best-effort publishers alike; several publishers may each send some joints;
+* ``/tf`` (``tf2_msgs/TFMessage``): reliable, volatile, depth 100, tf2's listener QoS;
+* ``/tf_static``: reliable, transient local, depth 100.
+
+Names are tf2's and robot_state_publisher's (``robot_description`` and ``joint_states``
+relative to the node's namespace), so the usual remapping works. The callbacks run in a
+callback group of their own and only take a short lock: reading the graph never waits for
+a query, and a query that does not ask for the world never waits for it.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+
+from projection_server.world.state import RobotWorld
+from projection_server.world.transforms import Transform
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
+
+__all__ = ['DESCRIPTION_QOS', 'JOINT_STATES_QOS', 'TF_QOS', 'TF_STATIC_QOS', 'WorldListener']
+
+DESCRIPTION_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+JOINT_STATES_QOS = QoSProfile(depth=50, history=HistoryPolicy.KEEP_LAST,
+                              reliability=ReliabilityPolicy.BEST_EFFORT,
+                              durability=DurabilityPolicy.VOLATILE)
+TF_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                    reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
+TF_STATIC_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                           reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def _ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+class WorldListener:
+    """Subscribes ``node`` to the robot's description, joint states and transforms."""
+
+    def __init__(self, node: Node):
+        self._node = node
+        group = MutuallyExclusiveCallbackGroup()
+        subs = [node.create_subscription(String, 'robot_description', self._on_description,
+                                         DESCRIPTION_QOS, callback_group=group),
+                node.create_subscription(JointState, 'joint_states', self._on_joints,
+                                         JOINT_STATES_QOS, callback_group=group),
+                node.create_subscription(TFMessage, '/tf', self._on_tf, TF_QOS,
+                                         callback_group=group),
+                node.create_subscription(TFMessage, '/tf_static', self._on_tf_static,
+                                         TF_STATIC_QOS, callback_group=group)]
+        self._subscriptions = subs
+        self.world = RobotWorld(clock=lambda: node.get_clock().now().nanoseconds,
+                                topics={'robot_description': subs[0].topic_name,
+                                        'joint_states': subs[1].topic_name})
+
+    def _on_description(self, msg: String) -> None:
+        self.world.set_description(msg.data)
+
+    def _on_joints(self, msg: JointState) -> None:
+        stamp = _ns(msg.header.stamp) or self.world.now()   # unstamped: as received
+        self.world.update_joints(msg.name, msg.position, stamp)
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        self.world.add_transforms(_transforms(msg, static=False))
+
+    def _on_tf_static(self, msg: TFMessage) -> None:
+        self.world.add_transforms(_transforms(msg, static=True))
+
+    def destroy(self) -> None:
+        for sub in self._subscriptions:
+            self._node.destroy_subscription(sub)
+        self._subscriptions = []
+
+
+def _transforms(msg: TFMessage, static: bool) -> list[Transform]:
+    out = []
+    for t in msg.transforms:
+        tr, q = t.transform.translation, t.transform.rotation
+        # tf2 strips a leading slash from frame ids; so do we, so that '/map' is 'map'.
+        out.append(Transform(t.header.frame_id.lstrip('/'), t.child_frame_id.lstrip('/'),
+                             (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w),
+                             None if static else _ns(t.header.stamp)))
+    return out
