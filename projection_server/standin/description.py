@@ -71,6 +71,7 @@ class RobotTree:
     def __init__(self, path: Path, root: ET.Element):
         self.path = path
         self._xml = root
+        self.name: str = root.get('name', '') or path.stem
         joints = [_joint(element) for element in root.findall('joint')]
         children = {j.child for j in joints}
         roots = [link.get('name') for link in root.findall('link')

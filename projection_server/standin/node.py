@@ -234,6 +234,9 @@ def main(args=None) -> int:
     # Started by a script's NodeProcess: stop when that script ends, even by SIGKILL.
     if parent.isdigit() and not die_with_parent(int(parent), signal.SIGTERM):
         return 1
+    # The simulation thread holds the GIL between Bullet's calls; a shorter switch interval
+    # lets the publishing timer's several hand-offs per message through at its rate.
+    sys.setswitchinterval(0.0005)
     rclpy.init(args=args)
     node = None
     try:
