@@ -3,7 +3,8 @@
 The node runs in its own process (as the projection server does in conftest.py); a plain
 rclpy node subscribes to its topics and calls its action and service, and the projection
 server reads its world with robot_world/2. Two plans run in its world (a grasp and a
-crush), one projection in the server's; the rest costs no simulation.
+crush) and one is cancelled at its first step, one projection in the server's; the rest
+costs no simulation.
 """
 
 from __future__ import annotations
@@ -203,9 +204,16 @@ def test_a_grasp_with_a_sensible_force_lifts_the_egg_as_the_projection_foresaw(
     reset(probe, standin, SEED)
     time.sleep(0.5)   # the new world's joint states and frames are out
     foreseen = project(call, GRASP.format(force=5))
+    from sensor_msgs.msg import JointState
+    states = []
+    sub = probe.create_subscription(JointState, '/joint_states', states.append, 100)
     started = time.monotonic()
-    result, status, feedback = execute(probe, standin, GRASP.format(force=5))
-    wall = time.monotonic() - started
+    try:
+        result, status, feedback = execute(probe, standin, GRASP.format(force=5))
+    finally:
+        wall = time.monotonic() - started
+        probe.destroy_subscription(sub)
+    assert len(states) / wall >= 50.0   # the robot keeps publishing while it acts
     assert result.ok and status == GoalStatus.STATUS_SUCCEEDED, result.error
     names = [event.split('(')[0] for event in result.events]
     assert 'grasp(egg1)' in ' '.join(result.events) and 'lift' in names, result.events
@@ -223,6 +231,32 @@ def test_a_grasp_with_a_sensible_force_lifts_the_egg_as_the_projection_foresaw(
     # When the fingers close on the egg is geometry, which the projection read; when the
     # lift begins depends on the egg's true friction and mass, which it was not told.
     assert abs(foreseen[0][1] - happened[0][1]) < 0.1, (foreseen, happened)
+
+
+def test_a_cancel_stops_the_plan_at_once(standin, probe):
+    from action_msgs.msg import GoalStatus
+    from rclpy.action import ActionClient
+
+    from projection_interfaces.action import ExecutePlan
+    reset(probe, standin, SEED)
+    client = ActionClient(probe, ExecutePlan, f'{standin}/execute_plan')
+    try:
+        assert client.wait_for_server(timeout_sec=10.0)
+        feedback = []
+        sent = client.send_goal_async(ExecutePlan.Goal(plan=GRASP.format(force=5)),
+                                      feedback_callback=feedback.append)
+        assert spin_until(probe, sent.done)
+        assert spin_until(probe, lambda: feedback, 30.0)
+        cancelled = time.monotonic()
+        sent.result().cancel_goal_async()
+        answer = sent.result().get_result_async()
+        assert spin_until(probe, answer.done, 30.0)
+    finally:
+        client.destroy()
+    assert answer.result().status == GoalStatus.STATUS_CANCELED
+    assert answer.result().result.error == 'cancelled'
+    assert time.monotonic() - cancelled < 2.0
+    assert not any(e.startswith('grasp') for e in answer.result().result.events)
 
 
 def test_a_crushing_force_breaks_the_egg(standin, probe):

@@ -119,6 +119,7 @@ class StandinRobotNode(Node):
             object_frame=value('object_frame').value, bag_dir=value('bag_dir').value)
         self.world = StandinWorld(config)
         self.world.reset(value('seed').value)
+        self.world.warm_up()
         tree = self.world.tree
 
         self.description_pub = self.create_publisher(String, '/robot_description', LATCHED)
@@ -179,7 +180,11 @@ class StandinRobotNode(Node):
         except ProjectionError as exc:
             outcome = Outcome(False, exc.message)
         else:
-            outcome = self.world.execute(plan, _GoalObserver(goal, started))
+            try:
+                outcome = self.world.execute(plan, _GoalObserver(goal, started))
+            except Exception as exc:  # noqa: BLE001 - the goal fails, the robot serves on
+                self.get_logger().error(f'executing the plan failed: {exc!r}')
+                outcome = Outcome(False, f'executing the plan failed: {exc}')
         result = ExecutePlan.Result(
             ok=outcome.ok, error=outcome.error, events=outcome.events,
             timeline_json=json.dumps(outcome.timeline) if outcome.timeline else '',
@@ -234,9 +239,6 @@ def main(args=None) -> int:
     # Started by a script's NodeProcess: stop when that script ends, even by SIGKILL.
     if parent.isdigit() and not die_with_parent(int(parent), signal.SIGTERM):
         return 1
-    # The simulation thread holds the GIL between Bullet's calls; a shorter switch interval
-    # lets the publishing timer's several hand-offs per message through at its rate.
-    sys.setswitchinterval(0.0005)
     rclpy.init(args=args)
     node = None
     try:

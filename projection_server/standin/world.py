@@ -11,10 +11,10 @@ simulation.runner.Projection`, the plan program, :func:`~projection_server.timel
 translate_records`), on a scenario of the world as it is now (the arm's joint positions,
 the object's pose) at :attr:`StandinConfig.physics_factor` times the projection's rate and
 solver iterations; so ``slip``, ``break`` and ``lift`` mean on both sides what a timeline
-says. A step hook reports the world's state to an :class:`Observer` at
-:attr:`StandinConfig.state_hz` of simulated time and, with ``real_time``, paces the
-simulation to the wall clock, as acting takes a robot's time. The world after the plan is
-the world from then on::
+says. It runs in the simulation's own process (:mod:`.simulation`), whose step hook
+reports the world's state to an :class:`Observer` at :attr:`StandinConfig.state_hz` of
+simulated time and, with ``real_time``, paces the simulation to the wall clock, as acting
+takes a robot's time. The world after the plan is the world from then on::
 
     >>> world = StandinWorld()
     >>> drawn = world.reset(7)                      # the truth in drawn['object']
@@ -27,9 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 import json
 import math
-from pathlib import Path
-import shutil
-import tempfile
 import threading
 import time
 from typing import Any, Protocol, TYPE_CHECKING
@@ -38,16 +35,15 @@ import numpy as np
 
 from projection_server import assets
 from projection_server.errors import ErrorKind, ProjectionError
-from projection_server.settings import load_settings
 from projection_server.standin.description import matrix_of, RobotTree
 
 if TYPE_CHECKING:
-    from collections.abc import Mapping, Sequence
+    from collections.abc import Sequence
 
     from projection_server.standin.plan_text import ParsedPlan
 
 __all__ = ['Observer', 'Outcome', 'StandinConfig', 'StandinError', 'StandinWorld',
-           'WorldState', 'event_text', 'quaternion_of_rpy', 'rpy_of_quaternion']
+           'WorldState', 'event_text', 'quaternion_of_rpy', 'rpy_of_quaternion', 'world_json']
 
 TABLE_TOP = 0.72   # m, the kitchen table's upper face
 # The kitchen of the knowledge base (prolog/kb/kitchen.ttl): floor and table.
@@ -165,10 +161,6 @@ class Observer(Protocol):
         """Whether to stop (checked with each state)."""
 
 
-class Cancelled(Exception):
-    """The observer asked to stop."""
-
-
 class StandinWorld:
     """The stand-in's world: its truth and state, resets and executions. One execution or
     reset at a time (a lock); :attr:`state` may be read from any thread."""
@@ -187,7 +179,7 @@ class StandinWorld:
         self.finger_joint = next(j for j in self.tree.state_joints
                                  if j in ROBOT['finger_joints'])
         self._lock = threading.Lock()
-        self._simulator: Any = None
+        self._process: Any = None   # the simulation's own process, started once
         self.truth: dict[str, float] = {}
         self.seed: int | None = None
         self.state: WorldState = WorldState({}, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
@@ -319,102 +311,32 @@ class StandinWorld:
 
     def _run(self, template: list[Any], texts: list[str], observer: Observer,
              started: float) -> Outcome:
-        from projection_server.bags import BagWriter
-        from projection_server.simulation.job import Job
-        from projection_server.simulation.runner import Projection, Simulator
-        from projection_server.timeline import translate_records
+        from projection_server.standin.simulation import Execution, SimulationProcess
+        if self._process is None:
+            self._process = SimulationProcess()
+        broken = self.state.broken
 
-        settings = load_settings()
-        base = settings.for_projection('plan').physics
-        factor = self.config.physics_factor
-        physics = {'rate_hz': base.rate_hz * factor,
-                   'solver_iterations': base.solver_iterations * factor}
-        job = Job.checked(self.scenario(), 'plan', {}, physics, plan=template)
-        if self._simulator is None:
-            self._simulator = Simulator()
-        directory = Path(self.config.bag_dir) if self.config.bag_dir else Path(
-            tempfile.mkdtemp(prefix='standin_'))
-        directory.mkdir(parents=True, exist_ok=True)
-        bag = directory / f'execution_{time.strftime("%Y%m%d_%H%M%S")}_{job.key(settings)[:8]}'
-        error, projection = '', None
-        try:
-            with BagWriter(bag) as writer:
-                projection = Projection(self._simulator.client, job, settings, writer)
-                hook = _Hook(self, projection, texts, observer)
-                projection.physics.step_hooks.append(hook)
-                try:
-                    projection.advance()
-                except Cancelled:
-                    error = 'cancelled'
-                except ProjectionError as exc:   # unreachable, too long: the robot stops
-                    error = exc.message
-            timeline = translate_records(projection.monitor.records, bag, projection.scenario)
-            self.state = self._observed(projection, timeline)
-        finally:
-            if not self.config.bag_dir:
-                shutil.rmtree(directory, ignore_errors=True)
-        events = [event_text(e) for e in timeline['events']]
-        plain = {k: timeline[k] for k in ('fluents', 'events', 'quantities')}
-        return Outcome(not error, error, events, plain, time.monotonic() - started,
-                       projection.physics.time)
+        def on_state(state: WorldState) -> None:
+            self.state = replace(state, broken=broken)
+        execution = Execution(self.scenario(), template, texts, self.config,
+                              list(self.tree.state_joints))
+        outcome, final = self._process.run(execution, observer, on_state)
+        if final is not None:   # the world after the plan is the world from now on
+            self.state = replace(final, broken=broken or final.broken)
+        outcome.duration = time.monotonic() - started
+        return outcome
 
-    def _observed(self, projection: Any, timeline: Mapping[str, Any]) -> WorldState:
-        """The world's state at the end of ``projection``: joints and object as they are."""
-        state = _read_state(self, projection)
-        broken = self.state.broken or any(
-            e[0] == 'break' and self.config.object_name in e[1] for e in timeline['events'])
-        return replace(state, broken=broken)
+    def warm_up(self) -> None:
+        """Start the simulation process now, not at the first plan."""
+        from projection_server.standin.simulation import SimulationProcess
+        if self._process is None:
+            self._process = SimulationProcess()
+        self._process.start()
 
     def close(self) -> None:
-        if self._simulator is not None:
-            self._simulator.close()
-            self._simulator = None
-
-
-class _Hook:
-    """After each physics step of an execution: report a step's start, and at the state
-    rate the state (pacing to the wall clock)."""
-
-    def __init__(self, world: StandinWorld, projection: Any, texts: list[str],
-                 observer: Observer):
-        self.world, self.projection, self.texts, self.observer = world, projection, texts, \
-            observer
-        rate = projection.physics.settings.physics.rate_hz
-        self.every = max(1, round(rate / world.config.state_hz))
-        self.index = -1
-        self.started = time.monotonic()
-
-    def __call__(self) -> None:
-        physics, task = self.projection.physics, self.projection.task
-        if task.index != self.index and 0 <= task.index < len(task.steps):
-            self.index = task.index
-            text = self.texts[task.index] if task.index < len(self.texts) else ''
-            self.observer.step(task.index + 1, len(task.steps), text)
-        if physics.step_count % self.every:
-            return
-        world = self.world
-        world.state = replace(_read_state(world, self.projection), broken=world.state.broken)
-        self.observer.state(world.state)
-        if self.observer.cancelled():
-            raise Cancelled
-        if world.config.real_time:
-            ahead = self.started + physics.time - time.monotonic()
-            if ahead > 0:
-                time.sleep(ahead)
-
-
-def _read_state(world: StandinWorld, projection: Any) -> WorldState:
-    physics = projection.physics
-    c = physics.client
-    body = physics.body(world.config.robot_name).body_id
-    indices = getattr(projection, '_standin_joints', None)
-    if indices is None:
-        names = {c.getJointInfo(body, j)[1].decode(): j for j in range(c.getNumJoints(body))}
-        indices = projection._standin_joints = [names[n] for n in world.tree.state_joints]
-    values = [s[0] for s in c.getJointStates(body, indices)]
-    xyz, quaternion = physics.pose(world.config.object_name)
-    return WorldState(dict(zip(world.tree.state_joints, map(float, values))),
-                      tuple(map(float, xyz)), tuple(map(float, quaternion)), physics.time)
+        if self._process is not None:
+            self._process.close()
+            self._process = None
 
 
 def event_text(event: Sequence[Any]) -> str:
