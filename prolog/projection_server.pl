@@ -27,7 +27,7 @@ module `user`:
   - uncertainty (uncertainty.pl): outcome_probability/7
   - robust (robust.pl): robust_parametrization/7
   - search (search.pl): outcome_boundary/7, best_parametrization/8
-  - the robot's world (robot_world.pl): robot_world/2
+  - the robot's world (robot_world.pl): robot_world/2, bag_scenario/2
 */
 
 %!  projection_server_init(+Options:dict) is det.
@@ -96,6 +96,7 @@ sandbox:safe_primitive(scenario:scenario_snapshot(_, _)).
 % Reads what the node's subscriptions received; writes a scenario and a robot description
 % (a model file under its content hash), nothing else.
 sandbox:safe_primitive(robot_world:robot_world(_, _)).
+sandbox:safe_primitive(robot_world:bag_scenario(_, _)).
 
 % A probability's condition and the searches' Condition/Constraint are the query's own
 % goals: safe when they are (library(sandbox) checks the meta arguments).

@@ -1,5 +1,6 @@
 :- module(robot_world,
-          [ robot_world/2               % -Scenario, +Options
+          [ robot_world/2,              % -Scenario, +Options
+            bag_scenario/2              % +Bag, -Scenario
           ]).
 :- autoload(library(apply), [maplist/3, partition/4]).
 :- autoload(library(error), [must_be/2, domain_error/2, existence_error/2]).
@@ -8,7 +9,8 @@
 :- autoload(library(pairs), [pairs_keys/2]).
 :- use_module(library(janus), [py_call/3]).
 :- use_module(scenario, [create_scenario/1, add_to_scenario/2, scenario_set_property/4,
-                         scenario_set_snapshot/2, delete_scenario/1]).
+                         scenario_set_snapshot/2, delete_scenario/1,
+                         create_scenario_from/2]).
 :- use_module(knowledge_base, [kb_urdf_robot/2, kb_entity_properties/2, kb_entity_frame/2]).
 
 /** <module> Scenarios from the world the robot is in
@@ -154,7 +156,7 @@ py_options(World, Frames, MaxAge, _{world_frame: WorldS, frames: FrameStrings, m
 % 0.1 s (projection_server.world.WAIT_SLICE) so that a query's time limit or
 % cancel stops the wait.
 take(Options, Deadline, Snapshot) :-
-    py_call('projection_server.world':snapshot(Options, Deadline), Answer,
+    py_call('projection_server.world':try_snapshot(Options, Deadline), Answer,
             [py_string_as(string)]),
     get_dict(status, Answer, Status),
     (   Status == "ok"
@@ -217,6 +219,36 @@ fill(Scenario, Robot, Placed, Framed, Snapshot) :-
     scenario_set_snapshot(Scenario, Snapshot.snapshot).
 
 frame_pose(Pose0, _{xyz: Pose0.xyz, rpy: Pose0.rpy}).
+
+%!  bag_scenario(+Bag, -Scenario) is det.
+%
+%   Scenario is a new scenario of the world the projection logged in Bag was
+%   made in (its `/projection/info`), snapshot included: a projection made
+%   from the live world, made again later without the robot.  The bag's
+%   program and parameters are in its timeline's meta
+%   (timeline_property/2).
+%
+%   ```
+%   ?- bag_scenario("/home/me/.cache/projection_server/bags/3f2a...", S),
+%      make_projection(S, plan([...]), [], TL).
+%   ```
+%
+%   @error existence_error(file, Bag) if there is no such bag.
+%   @error projection_error(bag_error, Message) for a bag that is no
+%          projection's.
+
+bag_scenario(Bag, Scenario) :-
+    must_be(text, Bag),
+    text_to_string(Bag, Path),
+    (   exists_directory(Path) -> true ; exists_file(Path) -> true
+    ;   existence_error(file, Bag)
+    ),
+    catch(py_call('projection_server.world':bag_scenario(Path), Description,
+                  [py_string_as(string)]),
+          error(python_error(_, Ex), _),
+          ( py_call(str(Ex), Msg),
+            throw(error(projection_error(bag_error, Msg), context(bag_scenario/2, _))) )),
+    create_scenario_from(Description, Scenario).
 
 :- multifile prolog:message//1.
 

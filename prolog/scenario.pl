@@ -10,7 +10,8 @@
             delete_scenario/1,          % +Scenario
             current_scenario/1,         % ?Scenario
             scenario_snapshot/2,        % +Scenario, -Snapshot:dict
-            scenario_set_snapshot/2     % +Scenario, +Snapshot:dict
+            scenario_set_snapshot/2,    % +Scenario, +Snapshot:dict
+            create_scenario_from/2      % +Description:dict, -Scenario
           ]).
 :- autoload(library(apply), [foldl/4, maplist/3]).
 :- autoload(library(error),
@@ -503,6 +504,55 @@ copy_(Scenario, Entities, Copy) :-
     new_scenario(Copy),
     maplist(assert_record(Copy), Entities),
     forall(snapshot(Scenario, Snapshot), assertz(snapshot(Copy, Snapshot))).
+
+%!  create_scenario_from(+Description:dict, -Scenario) is det.
+%
+%   Scenario is a new scenario of the entities (and the snapshot, if any) of
+%   Description, in the form scenario_description/2 gives and a bag's
+%   `/projection/info` holds: a scenario made again from its record, e.g. one
+%   made from the live world by robot_world/2, later and without the robot.
+%   Its model files are resolved again in the asset directories.
+%
+%   @error type_error(scenario_description, Description) for a dict without
+%          a list of entities, each with name, class, pose, properties and
+%          parts.
+%   @error Those of model_file/2 for a model file no longer there.
+
+create_scenario_from(Description, Scenario) :-
+    must_be(var, Scenario),
+    (   is_dict(Description),
+        get_dict(entities, Description, Entities0),
+        is_list(Entities0),
+        maplist(described_entity, Entities0, Entities1)
+    ->  true
+    ;   type_error(scenario_description, Description)
+    ),
+    maplist(entity_files, Entities1, Entities),
+    update(( new_scenario(Scenario),
+             maplist(assert_record(Scenario), Entities),
+             (   get_dict(snapshot, Description, Snapshot)
+             ->  assertz(snapshot(Scenario, Snapshot))
+             ;   true
+             ) )).
+
+% described_entity(+E0, -E): E0 has the keys of an entity; E is it with its
+% name and class atoms (JSON made them strings) and its parts likewise.
+described_entity(E0, E) :-
+    is_dict(E0),
+    forall(member(K, [name, class, pose, properties, parts]), get_dict(K, E0, _)),
+    text_to_atom(E0.name, Name),
+    text_to_atom(E0.class, Class),
+    is_list(E0.parts),
+    maplist(described_entity, E0.parts, Parts),
+    E = _{name: Name, class: Class, pose: E0.pose, properties: E0.properties,
+          parts: Parts}.
+
+text_to_atom(T, A) :-
+    text(T),
+    atom_string(A, T).
+
+text(T) :- atom(T), !.
+text(T) :- string(T).
 
 %!  delete_scenario(+Scenario) is det.
 %

@@ -301,3 +301,29 @@ def test_the_panda_grasps_and_lifts_the_egg_from_where_the_snapshot_found_both(a
         findall(E, occurs(E, _, TL), Es)''', timeout=120.0))
     events = [e if isinstance(e, str) else e['functor'] for e in s['Es']]
     assert 'lift' in events and 'slip' not in events and 'break' not in events, s['Es']
+
+
+def test_a_projection_from_the_live_world_is_made_again_without_the_robot(ask, graph, call):
+    bag = _project(ask)
+    # The session's other node never saw this robot: its robot topics are not /rw's.
+    r = call(PrologQuery, 'query', Q(mode=Q.ONCE, timeout=60.0, query=f'''
+        bag_scenario("{bag}", S), scenario_snapshot(S, Snap),
+        make_projection(S, {PLAN}, [], TL), timeline_property(TL, meta(M)),
+        get_dict(bag, M, Bag)'''), timeout=120.0)
+    [s] = solutions(r)
+    assert s['Bag'] != bag and s['Snap']['joints']['panda_joint1']['position'] == JOINTS[
+        'panda_joint1']
+    again, first = _first_poses(s['Bag']), _first_poses(bag)
+    assert set(again) == set(first)
+    for frame, (xyz, q) in first.items():
+        assert np.allclose(again[frame][0], xyz, atol=1e-9), frame
+        assert np.allclose(again[frame][1], q, atol=1e-9), frame
+
+
+def test_a_query_time_limit_stops_a_wait_for_a_frame(ask, graph):
+    import time
+    start = time.monotonic()
+    r = ask('robot_world(S, [wait(30), entities([entity(egg1, egg, _{frame: never})])])',
+            timeout=0.5)
+    assert not r.ok and r.error_kind == 'timeout', (r.error_kind, r.message)
+    assert time.monotonic() - start < 3.0
