@@ -189,7 +189,10 @@ def project(call, plan):
     """[(event name, time)] of the projection server's projection of ``plan`` (the plan
     language) from the robot's world as it reads it now."""
     from projection_interfaces.srv import PrologQuery
-    query = (f'robot_world(S, [entities([kitchen_env, entity(egg1, egg, _{{frame: egg_1}})])]),'
+    # max_age(5): on a loaded machine the server's listener may take more than the default
+    # second to work through 100 Hz of /tf and /joint_states; the age is not tested here.
+    query = ('robot_world(S, [max_age(5), entities([kitchen_env, '
+             'entity(egg1, egg, _{frame: egg_1})])]),'
              f' make_projection(S, plan({plan}), [], TL),'
              ' findall([N, T], (occurs(E, T, TL), E =.. [N|_]), Es)')
     r = call(PrologQuery, 'query', PrologQuery.Request(
