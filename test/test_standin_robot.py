@@ -30,7 +30,8 @@ def standin(rclpy_context, tmp_path_factory):
     from projection_interfaces.srv import ResetWorld
     from projection_server.client.launcher import node_command, NodeProcess
     log = tmp_path_factory.mktemp('standin') / 'standin.log'
-    with NodeProcess(node_command('standin_robot', {'seed': 3},
+    params = {'seed': 3, 'friction_range': '[0.15, 0.45]'}   # as the benchmark sets it
+    with NodeProcess(node_command('standin_robot', params,
                                   executable='projection_standin_robot'), log) as proc:
         proc.wait_for_service('/standin_robot/reset_world', ResetWorld)
         yield '/standin_robot'
@@ -164,6 +165,7 @@ def test_a_reset_puts_the_egg_where_it_says_and_draws_the_same_world_for_a_seed(
     assert first == again and other != first
     egg = first['object']
     assert egg['frame'] == 'egg_1' and 0.05 <= egg['properties']['mass'] <= 0.07
+    assert 0.15 <= egg['properties']['friction'] <= 0.45
     assert {'friction', 'mass', 'breaking_force'} <= set(egg['properties'])
     _, xyz, quaternion = tf_frames(probe, '/tf', ['egg_1'])['egg_1']
     assert math.dist(xyz, egg['pose']['xyz']) < 1e-3
