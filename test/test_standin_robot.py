@@ -175,7 +175,7 @@ def test_a_reset_puts_the_egg_where_it_says_and_draws_the_same_world_for_a_seed(
     assert max(abs(a - h) for a, h in zip(arm, home)) > 0.1   # not the KB's home pose
 
 
-def test_a_malformed_plan_is_a_clear_error_and_the_robot_keeps_serving(standin, probe):
+def test_a_malformed_plan_an_unknown_object_or_pose_out_of_reach_is_a_clear_error(standin, probe):
     from action_msgs.msg import GoalStatus
     result, status, _ = execute(probe, standin, '[move_to(egg1, [0, 0]), fly]')
     assert not result.ok and status == GoalStatus.STATUS_ABORTED
@@ -184,6 +184,8 @@ def test_a_malformed_plan_is_a_clear_error_and_the_robot_keeps_serving(standin, 
     assert not result.ok and "'cup1'" in result.error and 'egg_1' in result.error
     result, _, _ = execute(probe, standin, '[wait(')
     assert not result.ok and 'cannot be read' in result.error
+    result, _, _ = execute(probe, standin, '[move_to(pose([1.5, 0, 1], [0, 0, 0, 1]))]')
+    assert not result.ok and 'cannot reach' in result.error, result.error
     assert reset(probe, standin, SEED)['seed'] == SEED
 
 
