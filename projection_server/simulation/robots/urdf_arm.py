@@ -164,10 +164,10 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
                                 force=HOLD_FORCE, positionGain=gain)
     physics.add_body(Body(entity.name, entity.cls, body_id, False, None, links=links,
                           driven=True, urdf=None if sdf else path))
-    hand.open(hand.max_opening, speed=0.1)
+    # Open, or held where a snapshot found the (prismatic) fingers until the plan moves them.
+    given_fingers = not revolute and any(names[j] in given for j in fingers)
+    hand.open(sum(start.values()) if given_fingers else hand.max_opening, speed=0.1)
     physics.grippers[entity.name] = hand
-    if not revolute and any(names[j] in given for j in fingers):
-        hand.open(sum(start.values()), speed=0.1)   # held where the snapshot found them
     tool_orientation = c.getQuaternionFromEuler(p.get('tool_rpy', (0.0, 0.0, 0.0)))
     manipulator = Arm(c, entity.name, body_id, path, 1.0, (entity.pose.xyz, orientation), arm,
                       tool, p['tool_offset'], hand, gain, tool_orientation)
