@@ -46,11 +46,12 @@ from tf2_msgs.msg import TFMessage
 
 from projection_interfaces.action import ExecutePlan
 from projection_interfaces.srv import ResetWorld
-from projection_server.errors import ProjectionError
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.lifetime import die_with_parent, PARENT_ENV
 from projection_server.standin.plan_text import parse_plan
 from projection_server.standin.world import (Outcome, ROBOT_BASE, StandinConfig,
-                                             StandinWorld, WorldState, world_json)
+                                             StandinError, StandinWorld, WorldState,
+                                             world_json)
 
 __all__ = ['StandinRobotNode', 'main']
 
@@ -81,8 +82,10 @@ class StandinRobotNode(Node):
             description='the world at start is the one a reset with this seed draws',
             read_only=True))
         for name, (key, description) in RANGES.items():
+            # Dynamically typed: '[4, 14]' is an integer array, '[4.0, 14.0]' a double one.
             self.declare_parameter(name, list(getattr(defaults, key)), ParameterDescriptor(
-                description=description, read_only=True))
+                description=description + ' (two numbers)', read_only=True,
+                dynamic_typing=True))
         self.declare_parameter('joint_spread', defaults.joint_spread, ParameterDescriptor(
             description='the arm starts (and after a reset) within this many rad of the '
             "knowledge base's home pose, in each joint, but not at it", read_only=True,
@@ -110,8 +113,7 @@ class StandinRobotNode(Node):
         value = self.get_parameter
         self.world_frame = value('world_frame').value
         config = StandinConfig(
-            **{key: tuple(float(v) for v in value(name).value)
-               for name, (key, _) in RANGES.items()},
+            **{key: _range(name, value(name).value) for name, (key, _) in RANGES.items()},
             joint_spread=value('joint_spread').value,
             physics_factor=value('physics_factor').value,
             state_hz=max(100.0, value('publish_rate').value),
@@ -150,7 +152,15 @@ class StandinRobotNode(Node):
 
     # --- topics -------------------------------------------------------------------------
     def _publish(self) -> None:
-        state: WorldState = self.world.state
+        if not self.context.ok():   # shutting down: the publishers are going away
+            return
+        try:
+            self._publish_state(self.world.state)
+        except Exception:  # noqa: BLE001 - rclpy's error of a publisher shut down under it
+            if self.context.ok():
+                raise
+
+    def _publish_state(self, state: WorldState) -> None:
         stamp = self.get_clock().now().to_msg()
         joints = JointState(name=list(state.joints), position=list(state.joints.values()))
         joints.header.stamp = stamp
@@ -219,6 +229,15 @@ class _GoalObserver:
 
     def cancelled(self) -> bool:
         return self.goal.is_cancel_requested
+
+
+def _range(name: str, value: Any) -> tuple[float, float]:
+    """A range parameter's [low, high], integers or floats."""
+    if (not isinstance(value, (list, tuple)) or len(value) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+        raise StandinError(ErrorKind.INVALID_PARAMETERS,
+                           f'{name}: two numbers [low, high], got {value!r}')
+    return (float(value[0]), float(value[1]))
 
 
 def _transform(stamp: Any, parent: str, child: str, xyz: Any, quaternion: Any
