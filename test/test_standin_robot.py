@@ -30,7 +30,8 @@ def standin(rclpy_context, tmp_path_factory):
     from projection_interfaces.srv import ResetWorld
     from projection_server.client.launcher import node_command, NodeProcess
     log = tmp_path_factory.mktemp('standin') / 'standin.log'
-    params = {'seed': 3, 'friction_range': '[0.15, 0.45]'}   # as the benchmark sets it
+    # Ranges as the benchmark sets them, of floats or of integers.
+    params = {'seed': 3, 'friction_range': '[0.15, 0.45]', 'breaking_force_range': '[8, 12]'}
     with NodeProcess(node_command('standin_robot', params,
                                   executable='projection_standin_robot'), log) as proc:
         proc.wait_for_service('/standin_robot/reset_world', ResetWorld)
@@ -166,6 +167,7 @@ def test_a_reset_puts_the_egg_where_it_says_and_draws_the_same_world_for_a_seed(
     egg = first['object']
     assert egg['frame'] == 'egg_1' and 0.05 <= egg['properties']['mass'] <= 0.07
     assert 0.15 <= egg['properties']['friction'] <= 0.45
+    assert 8.0 <= egg['properties']['breaking_force'] <= 12.0
     assert {'friction', 'mass', 'breaking_force'} <= set(egg['properties'])
     _, xyz, quaternion = tf_frames(probe, '/tf', ['egg_1'])['egg_1']
     assert math.dist(xyz, egg['pose']['xyz']) < 1e-3
