@@ -85,11 +85,12 @@ class SimulationProcess:
         while True:
             if observer.cancelled():
                 self._cancel.set()
-            if not self._conn.poll(0.05):
-                if not self._proc.is_alive() or time.monotonic() > deadline:
-                    what = ('ended' if not self._proc.is_alive() else
-                            f'did not finish within {WALL_LIMIT + START_TIMEOUT:.0f} s')
-                    self.close()
+            late = time.monotonic() > deadline
+            if late or not self._conn.poll(0.05):
+                if late or not self._proc.is_alive():
+                    what = (f'did not finish within {WALL_LIMIT + START_TIMEOUT:.0f} s' if late
+                            else 'ended')
+                    self.close()   # a new one is started for the next plan
                     return Outcome(False, f'the robot\'s simulation {what}'), None
                 continue
             try:
