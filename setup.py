@@ -43,6 +43,7 @@ setup(
             'prolog_query = projection_server.client.cli:main',
             'projection_reproduce = projection_server.reproduce.__main__:main',
             'projection_render = projection_server.render.cli:main',
+            'projection_standin_robot = projection_server.standin.node:main',
         ],
     },
 )

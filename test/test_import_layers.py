@@ -23,8 +23,9 @@ SHARED = {'errors', 'canonical', 'settings', 'bags.schema', 'assets', 'geometry'
 # subscribes, Prolog's robot_world/2 makes scenarios of it).
 MEMBERS = {'beliefs': 'projection', 'selection': 'projection', 'world': 'service'}
 # Re-exports at the old paths, kept for one release; tools that drive the whole service or
-# read its bags (the renderer reads a bag and its timeline, as a worker makes it).
-OUTSIDE = {'node', 'launcher', 'bindings', 'reproduce', 'render'}
+# read its bags (the renderer reads a bag and its timeline, as a worker makes it); the
+# stand-in robot, which runs plans as a worker does and translates them as its timeline.
+OUTSIDE = {'node', 'launcher', 'bindings', 'reproduce', 'render', 'standin'}
 
 
 def _module(path: Path) -> str:

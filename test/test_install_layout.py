@@ -10,7 +10,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-EXECUTABLES = ('projection_server', 'prolog_query')
+EXECUTABLES = ('projection_server', 'prolog_query', 'projection_standin_robot')
 
 
 @pytest.fixture(scope='module')
