@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 import re
+import textwrap
 
 __all__ = ['Module', 'Predicate', 'read_module', 'read_modules']
 
@@ -117,7 +118,7 @@ def _tags(body: list[str]) -> tuple[list[str], list[tuple[str, str]]]:
         prose.pop()
     while prose and not prose[0].strip():
         prose.pop(0)
-    return prose, tags
+    return textwrap.dedent('\n'.join(prose)).splitlines(), tags
 
 
 def read_module(path: Path) -> Module | None:

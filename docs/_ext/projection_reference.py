@@ -114,8 +114,7 @@ def _pldoc_prose(lines: list[str]) -> list[str]:
             out.append('```text' if not in_code else '```')
             in_code = not in_code
         else:
-            out.append(line if in_code else line.strip() if not line.startswith('    ') else
-                       line)
+            out.append(line)
     if in_code:
         out.append('```')
     return out
