@@ -4,7 +4,8 @@
 #   make query Q='member(X, [a])'    send a query to a running node
 #   make bench                       run the benchmarks in bench/
 #   make reproduce                   the paper's three experiments, tables and report/
-.PHONY: setup run test query bench reproduce
+#   make docs                        the documentation site, into docs/_build/html
+.PHONY: setup run test query bench reproduce docs
 SHELL := /bin/bash
 
 setup:
@@ -31,3 +32,7 @@ bench: setup
 
 reproduce: setup
 	@tools/with_env.sh projection_reproduce --out reports $(ARGS)
+
+docs: setup
+	@tools/with_env.sh sphinx-build -W --keep-going -q -b html docs docs/_build/html $(ARGS)
+	@echo "docs/_build/html/index.html"

@@ -157,10 +157,11 @@ report_progress(step(I, Total, Program, Values), Log, Timeline) :-
 %   cancels them with the query) and report their progress to the query Id.
 %   The query service runs each query's goal this way (query_service.pl);
 %   outside it, projections have no owner.
+
+%!  current_query_context(-Context:dict) is semidet.
 %
-%   current_query_context(-Context) is semidet: the context of the query
-%   this thread runs, if it runs one (to run a query's goals in threads of
-%   their own as that query).
+%   Context is the context of the query this thread runs, if it runs one (to
+%   run a query's goals in threads of their own as that query).
 
 :- thread_local current_query_context/1.
 

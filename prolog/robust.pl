@@ -194,8 +194,10 @@ option_or(Option, Options, Default, Rest) :-
         Rest = Options
     ).
 
-% below_certifying_worlds(+N): the N choosing worlds of a seed (0..N-1) stay clear of its
-% certifying worlds, which start at selection.CERTIFY_OFFSET.
+%!  below_certifying_worlds(+N) is semidet.
+%
+%   True when the N choosing worlds of a seed (0..N-1) stay clear of its
+%   certifying worlds, which start at selection.CERTIFY_OFFSET.
 below_certifying_worlds(N) :-
     py_call('projection_server.selection':'CERTIFY_OFFSET', Offset),
     (   N =< Offset -> true ; domain_error(choosing_worlds(at_most(Offset)), samples(N)) ).

@@ -13,7 +13,7 @@ import pytest
 
 Q = PrologQuery.Request
 SIM_TIMEOUT = 120.0
-README = Path(__file__).resolve().parents[1] / 'README.md'
+TUTORIAL = Path(__file__).resolve().parents[1] / 'docs' / 'tutorials' / 'own_task.md'
 OUTCOME = ('( occurs(break, _, TL) -> O = break ; occurs(slip, _, TL) -> O = slip '
            '; O = ok )')
 
@@ -25,10 +25,11 @@ def ask(call, text, timeout=SIM_TIMEOUT):
 
 
 def readme_grasp_plan() -> str:
-    """The README's plan that does what grasp_object does (its make_projection goal)."""
-    text = README.read_text()
-    match = re.search(r'```prolog\n(make_projection\(grasping, plan\(.*?\))\n```', text, re.S)
-    assert match, 'the README shows no grasp plan'
+    """The tutorial's plan that does what grasp_object does (its make_projection goal)."""
+    text = TUTORIAL.read_text()
+    match = re.search(r'```\{code-block\} prolog\n:name: grasp-plan\n'
+                      r'(make_projection\(grasping, plan\(.*?\))\n```', text, re.S)
+    assert match, 'the tutorial shows no grasp plan'
     return match.group(1)
 
 

@@ -1,5 +1,6 @@
-"""Every ``ros2 service call`` / ``ros2 action send_goal`` line of the README does what the
-README says, with the request built from its YAML text the way the ROS 2 command line does.
+"""Every ``ros2 service call`` / ``ros2 action send_goal`` line of the README and of the
+documentation site (``docs/``) does what its page says, with the request built from its
+YAML text the way the ROS 2 command line does.
 
 The command line loads the YAML and sets each field by name, converting the value with the
 Python type of the field: ``int(v)``, ``float(v)``, ``str(v)``, ``bytes(v)`` (so a ``byte``
@@ -18,7 +19,15 @@ import shlex
 import pytest
 import yaml
 
-README = Path(__file__).resolve().parents[1] / 'README.md'
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / 'README.md'
+STANDIN = '/standin_robot'   # the stand-in robot's node: its examples are its own test's
+
+
+def pages() -> list[Path]:
+    """The README and the site's Markdown pages."""
+    return [README] + sorted(p for p in (ROOT / 'docs').rglob('*.md')
+                             if '_build' not in p.parts and p.name != 'contracts.md')
 _INTEGERS = {'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64'}
 
 
@@ -63,10 +72,11 @@ def _convert(current, field_type: str, value):
     return nested
 
 
-def readme_commands() -> list[tuple[str, str, str, str]]:
+def readme_commands(paths: list[Path] | None = None) -> list[tuple[str, str, str, str]]:
     """(verb, name, type, yaml) of each ``ros2 service call`` / ``ros2 action send_goal``
-    line of the README, continuation lines joined."""
-    text = README.read_text().replace('\\\n', ' ')
+    line of the pages (by default the README and the site's), continuation lines joined,
+    each command once."""
+    text = '\n'.join(p.read_text() for p in (paths or pages())).replace('\\\n', ' ')
     out = []
     for line in text.splitlines():
         line = line.strip()
@@ -75,7 +85,9 @@ def readme_commands() -> list[tuple[str, str, str, str]]:
         words = shlex.split(line, comments=True)
         verb = ' '.join(words[:3])
         args = [w for w in words[3:] if not w.startswith('-')]
-        out.append((verb, args[0], args[1], args[2] if len(args) > 2 else ''))
+        command = (verb, args[0], args[1], args[2] if len(args) > 2 else '')
+        if command not in out:
+            out.append(command)
     return out
 
 
@@ -96,7 +108,7 @@ def test_the_conversion_follows_the_cli_type_rules():
 
 
 def test_the_readme_shows_each_service_and_the_action():
-    names = {(verb, name.rsplit('/', 1)[-1]) for verb, name, _, _ in readme_commands()}
+    names = {(verb, name.rsplit('/', 1)[-1]) for verb, name, _, _ in readme_commands([README])}
     assert {('ros2 service call', 'query'), ('ros2 service call', 'next_solution'),
             ('ros2 service call', 'finish'), ('ros2 action send_goal', 'project')} <= names
 
@@ -146,7 +158,7 @@ DOCUMENTED = {
 }
 
 
-def test_every_readme_example_does_what_the_readme_says(server, call, node):
+def test_every_example_does_what_its_page_says(server, call, node):
     import rclpy
     from rclpy.action import ActionClient
     from projection_interfaces.action import Project
@@ -156,8 +168,9 @@ def test_every_readme_example_does_what_the_readme_says(server, call, node):
              'projection_interfaces/srv/PrologNextSolution': ('next_solution',
                                                               PrologNextSolution),
              'projection_interfaces/srv/PrologFinish': ('finish', PrologFinish)}
-    commands = readme_commands()
-    assert commands, 'no ros2 examples found in the README'
+    # The stand-in robot's examples run against the stand-in (test_standin_robot).
+    commands = [c for c in readme_commands() if not c[1].startswith(STANDIN + '/')]
+    assert commands, 'no ros2 examples found in the README or docs/'
     for verb, name, type_name, text in commands:
         assert name.startswith(server + '/'), name
         if verb == 'ros2 action send_goal':

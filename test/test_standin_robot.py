@@ -276,3 +276,28 @@ def test_a_crushing_force_breaks_the_egg(standin, probe):
     assert any(e.startswith('break(egg1)@') for e in result.events), result.events
     result, _, _ = execute(probe, standin, '[wait(0.1)]')
     assert not result.ok and 'broken' in result.error
+
+
+def test_the_docs_examples_of_the_stand_in_do_what_their_page_says(standin, probe):
+    """Each ``ros2 service call`` / ``ros2 action send_goal`` line of the pages that names
+    the stand-in, its request built from its YAML as the command line builds it."""
+    from projection_interfaces.action import ExecutePlan
+    from projection_interfaces.srv import ResetWorld
+
+    from test.test_readme_cli import readme_commands, request_from_yaml
+    commands = [c for c in readme_commands() if c[1].startswith(standin + '/')]
+    assert {name for _, name, _, _ in commands} == {f'{standin}/reset_world',
+                                                    f'{standin}/execute_plan'}
+    for verb, name, type_name, text in sorted(commands, key=lambda c: c[1], reverse=True):
+        if verb == 'ros2 service call':   # reset first: the egg where its grasp is
+            assert type_name == 'projection_interfaces/srv/ResetWorld'
+            seed = request_from_yaml(ResetWorld.Request, text).seed
+            world = reset(probe, standin, seed)
+            assert world['seed'] == seed and 'friction' in world['object']['properties']
+        else:
+            assert type_name == 'projection_interfaces/action/ExecutePlan'
+            result, _, feedback = execute(probe, standin,
+                                          request_from_yaml(ExecutePlan.Goal, text).plan)
+            events = [e.split('@')[0] for e in result.events]
+            assert result.ok and 'grasp(egg1)' in events and 'lift(egg1)' in events, result
+            assert len(feedback) == 6

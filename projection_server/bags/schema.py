@@ -24,6 +24,7 @@ __all__ = [
     'REFERENCE_LINKS',
     'Record',
     'TOPICS',
+    'TOPIC_TYPES',
     'is_latched',
     'message_definitions',
     'offered_qos',
@@ -45,6 +46,34 @@ TOPICS = {
     'bonds': '/projection/bonds',
     'clock': '/clock',
     'robot_description': '/robot_description',
+}
+# What each topic of :data:`TOPICS` carries: its message type and what one message says.
+# The documentation's table of a bag's topics is made from this one; a test checks it
+# against the connections of a projection's bag.
+TOPIC_TYPES = {
+    'info': ('projection_interfaces/msg/ProjectionInfo',
+             'once, at 0: the scenario, program, parameters and physics settings'),
+    'tf': ('tf2_msgs/msg/TFMessage',
+           'every sample: each object\'s pose and each robot\'s links, as a chain under the robot'),
+    'tf_static': ('tf2_msgs/msg/TFMessage', 'once: the frames that never move'),
+    'markers': ('visualization_msgs/msg/MarkerArray',
+                'every sample: each object\'s shape; a particle fluid as one SPHERE_LIST'),
+    'contacts': ('projection_interfaces/msg/ContactArray',
+                 'every sample: the contacts between bodies, aggregated since the last one'),
+    'gripper': ('projection_interfaces/msg/GripperState',
+                'every sample: each robot\'s gripper command, opening and finger forces'),
+    'objects': ('projection_interfaces/msg/ObjectStateArray',
+                'every sample: each modelled object\'s load, load limit and whether it is broken'),
+    'task': ('projection_interfaces/msg/TaskState',
+             'every sample: each robot\'s plan step or program phase and its target'),
+    'batter': ('std_msgs/msg/Float64MultiArray',
+               'every sample, per particle fluid: its temperatures, then its set flags'),
+    'bonds': ('std_msgs/msg/UInt32MultiArray',
+              'at the first sample and when they change: the bonds between set particles'),
+    'clock': ('rosgraph_msgs/msg/Clock', 'every sample: the simulated time'),
+    'robot_description': ('std_msgs/msg/String',
+                          'once: the first robot\'s URDF, its links named as their /tf frames '
+                          '(another robot R\'s on /R/robot_description)'),
 }
 # Published once and latched: late subscribers must still get it. A scenario's first robot
 # describes itself on /robot_description, every other robot R on /R/robot_description

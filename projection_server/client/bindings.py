@@ -1,4 +1,5 @@
-"""Decoding and printing of query bindings (the JSON encoding documented in the README).
+"""Decoding and printing of query bindings (their JSON encoding:
+docs/reference/binding_encoding.md).
 
 >>> decode_solution('{"X": {"functor": "f", "args": ["a", {"var": "Y"}]}}')
 {'X': Compound('f', (Atom('a'), Var('Y')))}

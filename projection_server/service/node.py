@@ -30,13 +30,13 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                SetParametersResult)
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from std_srvs.srv import Trigger
 
 from projection_server import projection, world
 from projection_server.lifetime import die_with_parent, PARENT_ENV
 from projection_server.service import prolog_bridge
+from projection_server.service.parameters import descriptor, PARAMETERS
 from projection_server.service.project_action import ProjectActionServer
 from projection_server.service.queries import (ALL, INCREMENTAL, ONCE, QueryError, QueryEvent,
                                        QueryManager, ServerLimits)
@@ -117,39 +117,11 @@ class ProjectionServerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('projection_server', **kwargs)
-        self.declare_parameter('max_engines', 8, _int(
-            'Most Prolog engines (live queries) at once', 1, 256, read_only=True))
-        self.declare_parameter('default_timeout', 120.0, _float(
-            'Seconds a solution may take when the request gives 0', 0.001, 86400.0))
-        self.declare_parameter('max_solutions', 100, _int(
-            'Cap on ALL_SOLUTIONS answers when the request gives 0', 1, 1_000_000))
-        self.declare_parameter('idle_timeout', 300.0, _float(
-            'Seconds after which an idle INCREMENTAL query is closed', 0.001, 86400.0))
-        self.declare_parameter('sandbox', True, ParameterDescriptor(
-            description='Refuse goals library(sandbox) cannot prove safe'))
-        self.declare_parameter('bag_dir', '', ParameterDescriptor(
-            description='Where projection bags go (empty: ~/.cache/projection_server/bags)',
-            read_only=True))
-        self.declare_parameter('projection_workers', 1, _int(
-            'Simulation worker processes', 1, 64, read_only=True))
-        self.declare_parameter('max_bags', 1000, _int(
-            'Bags kept in bag_dir; the oldest are deleted first', 1, 10_000_000,
-            read_only=True))
-        self.declare_parameter('projection_backend', 'local', ParameterDescriptor(
-            description='Who runs projections: local (worker processes) or ray (Ray actors)',
-            read_only=True, additional_constraints='one of: local, ray'))
-        self.declare_parameter('ray_address', '', ParameterDescriptor(
-            description='Ray cluster for projection_backend ray: auto, ray://host:port or '
-                        'host:port (empty: start a local Ray instance)', read_only=True))
-        self._declare_string_array('kb_files', ParameterDescriptor(
-            description='Turtle files added to the knowledge base at start (default: none)',
-            read_only=True))
-        self._declare_string_array('asset_paths', ParameterDescriptor(
-            description='Directories where model files resolve, after the package assets and '
-                        'before pybullet_data (default: none)', read_only=True))
-        self.declare_parameter('robot_world', True, ParameterDescriptor(
-            description='Read robot_description, joint_states, /tf and /tf_static for '
-                        'robot_world/2', read_only=True))
+        for spec in PARAMETERS:
+            if spec.default == []:
+                self._declare_string_array(spec.name, descriptor(spec))
+            else:
+                self.declare_parameter(spec.name, spec.default, descriptor(spec))
         self.add_on_set_parameters_callback(self._check_parameters)
 
         bag_dir = self.get_parameter('bag_dir').value or None
@@ -332,17 +304,6 @@ def _check_bag_dir(path: Path) -> None:
 
 class StartupError(Exception):
     """The node cannot start with its parameters."""
-
-
-def _int(description: str, low: int, high: int, read_only: bool = False
-         ) -> ParameterDescriptor:
-    return ParameterDescriptor(description=description, read_only=read_only, integer_range=[
-        IntegerRange(from_value=low, to_value=high, step=1)])
-
-
-def _float(description: str, low: float, high: float) -> ParameterDescriptor:
-    return ParameterDescriptor(description=description, floating_point_range=[
-        FloatingPointRange(from_value=low, to_value=high, step=0.0)])
 
 
 def main(args=None) -> int:
