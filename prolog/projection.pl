@@ -8,7 +8,10 @@
             projection_default_timeout/1, % -Seconds
             with_query_context/2,       % +Context:dict, :Goal
             current_query_context/1,    % -Context:dict
-            parameter_values/2          % +Range, -Values:list(number)
+            parameter_values/2,         % +Range, -Values:list(number)
+            projection_vocabulary/2,    % +Scenario, -Vocabulary
+            projection_check_condition/4, % +Scenario, ?Timeline, :Condition, +Pred
+            projection_check_quantity/3 % +Scenario, +Quantity, +Pred
           ]).
 :- autoload(library(apply), [maplist/3, foldl/4, include/3]).
 :- autoload(library(error),
@@ -20,11 +23,14 @@
 :- autoload(library(aggregate), [aggregate_all/3]).
 :- autoload(library(solution_sequences), [limit/2]).
 :- use_module(library(janus), [py_call/2]).
-:- meta_predicate with_query_context(+, 0).
+:- meta_predicate
+    with_query_context(+, 0),
+    projection_check_condition(+, ?, 0, +).
 :- use_module(scenario, [scenario_description/2, scenario_entity/3]).
 :- use_module(plan, [plan_template/3]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1,
-                         occurs/3]).
+                         occurs/3, timeline_vocabulary_create/2,
+                         timeline_condition_terms/3, timeline_check_term/3]).
 
 /** <module> Simulation-based temporal projection (the paper's section III-B)
 
@@ -579,6 +585,73 @@ projection_physics_setting(Program, Name, Setting) :-
     member(Setting, Settings),
     get_dict(name, Setting, Name0),
     atom_string(Name, Name0).
+
+%!  projection_vocabulary(+Scenario, -Vocabulary) is det.
+%
+%   Vocabulary is what any timeline of a projection of Scenario can name
+%   (timeline_vocabulary_create/2): the fluents, events and quantities the
+%   translation makes of its entities (a particle fluid's only if it has
+%   one) and its objects.  The translation's rules are the same for every
+%   program, so the vocabulary is the scenario's.  `none` for a scenario
+%   the simulator refuses (projecting it says why).  Kept per scenario
+%   description, so that a changed scenario gets its own.
+%
+%   @error existence_error(scenario, Scenario) for an unknown scenario.
+
+:- dynamic scenario_vocabulary/3.       % Hash, Sequence number, Data
+
+projection_vocabulary(Scenario, Vocabulary) :-
+    scenario_description(Scenario, Description),
+    variant_sha1(Description, Hash),
+    (   scenario_vocabulary(Hash, _, Data)
+    ->  true
+    ;   py_call('projection_server.timeline.vocabulary':scenario_vocabulary(Description),
+                Data),
+        flag(projection_vocabulary_seq, N, N+1),
+        assertz(scenario_vocabulary(Hash, N, Data)),
+        % The most recent scenarios' only: a stream of new ones runs in bounded memory.
+        aggregate_all(count, scenario_vocabulary(_, _, _), Count),
+        Excess is Count - 64,
+        forall(limit(Excess, retract(scenario_vocabulary(_, _, _))), true)
+    ),
+    (   Data == @(none)
+    ->  Vocabulary = none
+    ;   timeline_vocabulary_create(Data, Vocabulary)
+    ).
+
+%!  projection_check_condition(+Scenario, ?Timeline, :Condition, +Pred) is det.
+%
+%   The fluents, events, quantities, types and objects that Condition, a
+%   goal on the projection's timeline Timeline, names
+%   (timeline_condition_terms/3) are ones a timeline of Scenario can have;
+%   called before projecting by the predicates that take a condition, Pred
+%   (e.g. outcome_probability/7), so that a misspelled name is an error
+%   instead of a condition that is never, or always, true.
+%
+%   @error existence_error(Kind, Term) for the first term that is not (Kind
+%          `fluent`, `event`, `quantity`, `type` or `entity`); the message
+%          names Pred and Scenario and lists the known ones.
+
+projection_check_condition(Scenario, Timeline, Condition, Pred) :-
+    timeline_condition_terms(Condition, Timeline, Terms),
+    (   Terms == []
+    ->  true
+    ;   projection_vocabulary(Scenario, Vocabulary),
+        maplist(timeline_check_term(Vocabulary, context(Pred, Scenario)), Terms)
+    ).
+
+%!  projection_check_quantity(+Scenario, +Quantity, +Pred) is det.
+%
+%   Quantity (a term or an atom pattern, as quantity/3 takes it) is one a
+%   timeline of Scenario can have; Pred takes it (e.g. the objective of
+%   best_parametrization/8).
+%
+%   @error existence_error(quantity, Quantity) or existence_error(entity,
+%          Object) if it is not.
+
+projection_check_quantity(Scenario, Quantity, Pred) :-
+    projection_vocabulary(Scenario, Vocabulary),
+    timeline_check_term(Vocabulary, context(Pred, Scenario), quantity-Quantity).
 
 %!  projection_default_timeout(-Seconds) is det.
 %
