@@ -9,7 +9,7 @@
             with_query_context/2,       % +Context:dict, :Goal
             current_query_context/1,    % -Context:dict
             parameter_values/2,         % +Range, -Values:list(number)
-            projection_vocabulary/2,    % +Scenario, -Vocabulary
+            projection_vocabulary/2,    % +Scenario, -Vocabulary:dict
             projection_check_condition/4, % +Scenario, ?Timeline, :Condition, +Pred
             projection_check_quantity/3 % +Scenario, +Quantity, +Pred
           ]).
@@ -30,7 +30,8 @@
 :- use_module(plan, [plan_template/3]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1,
                          occurs/3, timeline_vocabulary_create/2,
-                         timeline_condition_terms/3, timeline_check_term/3]).
+                         timeline_condition_terms/3, timeline_check_term/3,
+                         timeline_vocabulary_dict/2]).
 
 /** <module> Simulation-based temporal projection (the paper's section III-B)
 
@@ -122,6 +123,10 @@ on that projection's timeline:
 %   @error domain_error(parameter_value, Name=Value) for a value out of range
 %   @error domain_error(projection_option, O) for an unknown option
 %   @error domain_error(positive_integer, N) for samples(N) with N < 1
+%   @error domain_error(params_combination, C) for a combination C of
+%          only(Combinations) that is none of Params'
+%   @error domain_error(parameter_range, range(Low, High, Step)) for a range
+%          without values (High < Low)
 %   @error domain_error(physics_setting(Name, Range), Value) for a physics
 %          setting out of Range (`between(Min, Max)` or `multiple_of(N)`)
 %   @error domain_error(plan_step, Step), domain_error(plan_length(1, Max), N)
@@ -237,7 +242,16 @@ simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Shown
 only_combinations(Options, Choices, All0, All) :-
     is_list(Options),
     memberchk(only(Combinations), Options), !,
-    include(in_combinations(Choices, Combinations), All0, All).
+    include(in_combinations(Choices, Combinations), All0, All),
+    % A combination that is none of Params' would silently not be projected.
+    findall(Vs, ( member(Values, All),
+                  maplist([choice(_, Name, _), V]>>get_dict(Name, Values, V), Choices, Vs) ),
+            Grid),
+    forall(member(C, Combinations),
+           (   memberchk(C, Grid)
+           ->  true
+           ;   domain_error(params_combination, C)
+           )).
 only_combinations(_, _, All, All).
 
 in_combinations(Choices, Combinations, Values) :-
@@ -433,12 +447,18 @@ parse_param(Program, Formal, Param, choice(Var, Name, Values)) :-
 %   it: a non-empty list, or `range(Low, High, Step)`.
 %
 %   @error type_error(parameter_range, Range) for another term
+%   @error domain_error(parameter_range, range(Low, High, Step)) for High < Low
+%          (no values)
 
 parameter_values(Range, Values) :-
     range_values(Range, Values).
 
 range_values(range(Low, High, Step), Values) :- !,
     must_be(number, Low), must_be(number, High), must_be_positive(Step),
+    (   High >= Low
+    ->  true
+    ;   domain_error(parameter_range, range(Low, High, Step))
+    ),
     N is floor((High - Low) / Step + 1.0e-9),
     numlist(0, N, Is),
     maplist([I, V]>>(V0 is Low + I * Step, V is round(V0 * 1.0e9) / 1.0e9), Is, Values).
@@ -575,10 +595,18 @@ projection_program(Program, Formal) :-
 %   default (the program's, from config/physics.yaml); that of `rate_hz` has
 %   multiple_of: the step rate must be a multiple of the control and logging
 %   rates.
+%
+%   @error existence_error(program, Program) for a Program that is bound to
+%          no registered program (nor `plan`).
 
 projection_physics_setting(Program, Name, Setting) :-
     (   Program == plan                 % a plan: the settings file's defaults
     ->  true
+    ;   atom(Program)
+    ->  (   projection_program(Program, _)
+        ->  true
+        ;   existence_error(program, Program)
+        )
     ;   projection_program(Program, _)
     ),
     py_call('projection_server.projection':physics_settings(Program), Settings),
@@ -586,37 +614,58 @@ projection_physics_setting(Program, Name, Setting) :-
     get_dict(name, Setting, Name0),
     atom_string(Name, Name0).
 
-%!  projection_vocabulary(+Scenario, -Vocabulary) is det.
+%!  projection_vocabulary(+Scenario, -Vocabulary:dict) is det.
 %
-%   Vocabulary is what any timeline of a projection of Scenario can name
-%   (timeline_vocabulary_create/2): the fluents, events and quantities the
-%   translation makes of its entities (a particle fluid's only if it has
-%   one) and its objects.  The translation's rules are the same for every
-%   program, so the vocabulary is the scenario's.  `none` for a scenario
-%   the simulator refuses (projecting it says why).  Kept per scenario
-%   description, so that a changed scenario gets its own.
+%   Vocabulary is what any timeline of a projection of Scenario can name:
+%   `_{fluents: [Name/Arity, ...], events: ..., quantities: ..., objects:
+%   [Object, ...]}`, the fluents, events and quantities the translation
+%   makes of its entities (those of a particle fluid only if it has one)
+%   and its objects (its entities, parts included).  The translation's
+%   rules are the same for every program, so the vocabulary is the
+%   scenario's.  A name or object outside it is an existence_error in
+%   holds/3, occurs/3, quantity/3 and in the conditions of the predicates
+%   that take one (see timeline.pl).
 %
 %   @error existence_error(scenario, Scenario) for an unknown scenario.
+%   @error projection_error(invalid_scenario, Message) for a scenario the
+%          simulator refuses.
 
+projection_vocabulary(Scenario, Dict) :-
+    scenario_vocabulary_data(Scenario, Data),
+    (   Data = error(Class, Value)
+    ->  projection_error(Class, Value)
+    ;   timeline_vocabulary_create(Data, Vocabulary),
+        timeline_vocabulary_dict(Vocabulary, Dict)
+    ).
+
+% vocabulary_of(+Scenario, -Vocabulary): the stored vocabulary of Scenario's timelines,
+% `none` for a scenario the simulator refuses (projecting it says why).
+vocabulary_of(Scenario, Vocabulary) :-
+    scenario_vocabulary_data(Scenario, Data),
+    (   Data = error(_, _)
+    ->  Vocabulary = none
+    ;   timeline_vocabulary_create(Data, Vocabulary)
+    ).
+
+% scenario_vocabulary_data(+Scenario, -Data): the simulator's vocabulary of Scenario's
+% description, or error(Class, Value); kept per description, so that a changed scenario
+% gets its own, and for the most recent ones only (bounded memory).
 :- dynamic scenario_vocabulary/3.       % Hash, Sequence number, Data
 
-projection_vocabulary(Scenario, Vocabulary) :-
+scenario_vocabulary_data(Scenario, Data) :-
     scenario_description(Scenario, Description),
     variant_sha1(Description, Hash),
-    (   scenario_vocabulary(Hash, _, Data)
-    ->  true
-    ;   py_call('projection_server.timeline.vocabulary':scenario_vocabulary(Description),
-                Data),
+    (   scenario_vocabulary(Hash, _, Data0)
+    ->  Data = Data0
+    ;   catch(py_call('projection_server.timeline.vocabulary':
+                      scenario_vocabulary(Description), Data),
+              error(python_error(Class, Value), _),
+              Data = error(Class, Value)),
         flag(projection_vocabulary_seq, N, N+1),
         assertz(scenario_vocabulary(Hash, N, Data)),
-        % The most recent scenarios' only: a stream of new ones runs in bounded memory.
         aggregate_all(count, scenario_vocabulary(_, _, _), Count),
         Excess is Count - 64,
         forall(limit(Excess, retract(scenario_vocabulary(_, _, _))), true)
-    ),
-    (   Data == @(none)
-    ->  Vocabulary = none
-    ;   timeline_vocabulary_create(Data, Vocabulary)
     ).
 
 %!  projection_check_condition(+Scenario, ?Timeline, :Condition, +Pred) is det.
@@ -636,7 +685,7 @@ projection_check_condition(Scenario, Timeline, Condition, Pred) :-
     timeline_condition_terms(Condition, Timeline, Terms),
     (   Terms == []
     ->  true
-    ;   projection_vocabulary(Scenario, Vocabulary),
+    ;   vocabulary_of(Scenario, Vocabulary),
         maplist(timeline_check_term(Vocabulary, context(Pred, Scenario)), Terms)
     ).
 
@@ -650,7 +699,7 @@ projection_check_condition(Scenario, Timeline, Condition, Pred) :-
 %          Object) if it is not.
 
 projection_check_quantity(Scenario, Quantity, Pred) :-
-    projection_vocabulary(Scenario, Vocabulary),
+    vocabulary_of(Scenario, Vocabulary),
     timeline_check_term(Vocabulary, context(Pred, Scenario), quantity-Quantity).
 
 %!  projection_default_timeout(-Seconds) is det.
@@ -658,6 +707,11 @@ projection_check_quantity(Scenario, Quantity, Pred) :-
 %   Wall-clock limit of one simulation for make_projection/4.
 
 projection_default_timeout(60).
+
+:- multifile sandbox:safe_primitive/1.
+
+% It reads the scenario store and asks the simulator's vocabulary of it, nothing else.
+sandbox:safe_primitive(projection:projection_vocabulary(_, _)).
 
 :- multifile prolog:error_message//1.
 

@@ -102,6 +102,8 @@ it).
 %   @error domain_error(scenario_with_beliefs, Scenario) for a scenario whose
 %          properties are all numbers: a certified choice needs a belief
 %   @error domain_error(robust_option, O) for an unknown option
+%   @error domain_error(near_values(N), near(Values)) for a prefer(near(Values))
+%          whose Values are not N, one per parameter
 %   @error existence_error(Kind, Term) for a fluent, event, quantity, type or
 %          object (Kind `entity`) that Condition names on TL, or a prefer(Q)
 %          quantity, that no timeline of Scenario can have, before anything
@@ -121,6 +123,7 @@ robust_parametrization(Scenario, Program, Params, Options, TL, Condition, Best) 
     cells(Params, Vars, Names, Cells),
     projection_check_condition(Scenario, TL, Condition, robust_parametrization/7),
     prefer_known(Rule, Prefer, Scenario),
+    near_values(Rule, Near, Names),
     length(Cells, K),
     (   Batch0 == workers
     ->  py_call('projection_server.projection':workers(), W),
@@ -161,6 +164,15 @@ prefer_rule(-Quantity, prefer, @(none), -1) :- !,
     must_be(callable, Quantity).
 prefer_rule(Quantity, prefer, @(none), 1) :-
     must_be(callable, Quantity).
+
+% near_values(+Rule, +Near, +Names): near(Values) gives a value per parameter (fewer
+% would be matched against the first parameters only).
+near_values(near, Near, Names) :-
+    length(Near, N),
+    length(Names, M),
+    N =\= M, !,
+    domain_error(near_values(M), near(Near)).
+near_values(_, _, _).
 
 % prefer_known(+Rule, +Prefer, +Scenario): a prefer(Quantity) names a quantity the
 % scenario's timelines can have.
@@ -344,5 +356,7 @@ params_dict(Names, Values, Dict) :-
 prolog:message(error(domain_error(scenario_with_beliefs, Scenario), _)) -->
     [ 'Scenario ~w has no belief: a certified choice needs one; give a property a '-[Scenario],
       'distribution with scenario_set_property/4 (e.g. uniform(0.2, 0.4))' ].
+prolog:message(error(domain_error(near_values(N), near(Values)), _)) -->
+    [ 'prefer(near(~w)): give ~w values, one per parameter in Params\' order'-[Values, N] ].
 prolog:message(error(domain_error(robust_option, Option), _)) -->
     [ 'robust_parametrization/7 has no option ~q (see its documentation)'-[Option] ].

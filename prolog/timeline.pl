@@ -15,6 +15,7 @@
             typeOf/2,                   % ?Term, ?Type
             objOf/2,                    % ?Term, ?Object
             timeline_vocabulary_create/2, % +Data:dict, -Vocabulary
+            timeline_vocabulary_dict/2, % +Vocabulary, -Dict
             timeline_condition_terms/3, % :Goal, ?Timeline, -Terms:list
             timeline_check_term/3       % +Vocabulary, +Context, +Term
           ]).
@@ -288,9 +289,7 @@ property(events(N), TL) :- aggregate_all(count, tl_event(TL, _, _), N).
 property(quantities(N), TL) :- aggregate_all(count, tl_quantity(TL, _, _), N).
 property(vocabulary(V), TL) :-
     tl_vocabulary(TL, Key),
-    known(Key, fluent, Fs), known(Key, event, Es), known(Key, quantity, Qs),
-    known(Key, entity, Os),
-    V = _{fluents: Fs, events: Es, quantities: Qs, objects: Os}.
+    timeline_vocabulary_dict(vocabulary(Key), V).
 
 %!  timeline_fluent_intervals(?Fluent, -Intervals:list, +Timeline) is nondet.
 %
@@ -516,6 +515,16 @@ vocabulary_name([Name0, Kinds0], Name-Kinds) :-
     is_list(Kinds0),
     maplist(text_atom, Kinds0, Kinds),
     forall(member(K, Kinds), memberchk(K, [object, property])).
+
+%!  timeline_vocabulary_dict(+Vocabulary, -Dict) is det.
+%
+%   Dict is Vocabulary as `_{fluents: [Name/Arity, ...], events: ...,
+%   quantities: ..., objects: [Object, ...]}`, each list sorted.
+
+timeline_vocabulary_dict(vocabulary(Key), V) :-
+    known(Key, fluent, Fs), known(Key, event, Es), known(Key, quantity, Qs),
+    known(Key, entity, Os),
+    V = _{fluents: Fs, events: Es, quantities: Qs, objects: Os}.
 
 text_atom(T, A) :-
     (   atom(T) -> A = T ; string(T), atom_string(A, T) ).

@@ -74,17 +74,17 @@ def vocabulary(scenario: Scenario) -> dict[str, Any]:
     return out
 
 
-def scenario_vocabulary(description: dict[str, Any]) -> dict[str, Any] | None:
+def scenario_vocabulary(description: dict[str, Any]) -> dict[str, Any]:
     """:func:`vocabulary` of a scenario description (the dict of ``docs/contracts.md``, its
-    properties possibly distributions); None for a description the simulator refuses
-    (projecting it reports why)."""
+    properties possibly distributions).
+
+    Raises:
+        ProjectionError: kind ``invalid_scenario`` for a description the simulator refuses.
+    """
     from projection_server import beliefs
     from projection_server.simulation.scenario import parse_scenario
 
-    try:
-        return vocabulary(parse_scenario(beliefs.nominal(description)))
-    except (ProjectionError, ValueError, KeyError, TypeError):
-        return None
+    return vocabulary(parse_scenario(beliefs.nominal(description)))
 
 
 def check(timeline: Mapping[str, Any], vocab: Mapping[str, Any]) -> None:
