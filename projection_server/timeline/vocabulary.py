@@ -6,7 +6,8 @@ The rules of :mod:`~projection_server.timeline.rules` and
 fluids' terms only when the scenario has a particle fluid. :func:`translate_records`
 checks every term it emits against this vocabulary (:func:`check`), so a rule that emits a
 name left out here fails every projection at once instead of drifting. Prolog checks a
-query's conditions against the same vocabulary before it projects (``timeline.pl``)::
+query's conditions against the same vocabulary before it projects (``timeline.pl``; a
+scenario description's is :func:`projection_server.projection.vocabulary`)::
 
     >>> vocabulary(parse_scenario(description))['events']
     [['break', ['object']], ['collision', ['object', 'object']], ...]
@@ -24,9 +25,7 @@ from projection_server.errors import ErrorKind, ProjectionError
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
-    from projection_server.simulation.scenario import Scenario
-
-__all__ = ['BODY', 'FLUID', 'check', 'scenario_vocabulary', 'vocabulary']
+__all__ = ['BODY', 'FLUID', 'check', 'vocabulary']
 
 O, P = 'object', 'property'
 
@@ -58,9 +57,11 @@ _KINDS = ('fluents', 'events', 'quantities')
 _SINGULAR = {'fluents': 'fluent', 'events': 'event', 'quantities': 'quantity'}
 
 
-def vocabulary(scenario: Scenario) -> dict[str, Any]:
-    """The vocabulary of the timelines of the checked ``scenario``: ``{'fluents': [[name,
-    kinds], ...], 'events': ..., 'quantities': ..., 'objects': [name, ...]}``, sorted."""
+def vocabulary(scenario: Any) -> dict[str, Any]:
+    """The vocabulary of the timelines of the checked ``scenario`` (its ``entities``, each
+    with a ``name`` and a ``unit`` whose ``fluid_role`` says what it is to a fluid):
+    ``{'fluents': [[name, kinds], ...], 'events': ..., 'quantities': ..., 'objects': [name,
+    ...]}``, sorted."""
     fluid = any(entity.unit.fluid_role is not None
                 and entity.unit.fluid_role(entity)[0] == 'fluid'
                 for entity in scenario.entities)
@@ -72,19 +73,6 @@ def vocabulary(scenario: Scenario) -> dict[str, Any]:
         out[kind] = [[name, list(args)] for name, args in sorted(terms.items())]
     out['objects'] = sorted(entity.name for entity in scenario.entities)
     return out
-
-
-def scenario_vocabulary(description: dict[str, Any]) -> dict[str, Any]:
-    """:func:`vocabulary` of a scenario description (the dict of ``docs/contracts.md``, its
-    properties possibly distributions).
-
-    Raises:
-        ProjectionError: kind ``invalid_scenario`` for a description the simulator refuses.
-    """
-    from projection_server import beliefs
-    from projection_server.simulation.scenario import parse_scenario
-
-    return vocabulary(parse_scenario(beliefs.nominal(description)))
 
 
 def check(timeline: Mapping[str, Any], vocab: Mapping[str, Any]) -> None:

@@ -10,7 +10,8 @@ import yaml
 
 from projection_server.errors import ProjectionError
 from projection_server.simulation.scenario import parse_scenario
-from projection_server.timeline.vocabulary import check, scenario_vocabulary, vocabulary
+from projection_server.projection import vocabulary as description_vocabulary
+from projection_server.timeline.vocabulary import check, vocabulary
 
 from .conftest import GRASPING
 
@@ -39,7 +40,7 @@ def test_a_description_with_beliefs_has_the_vocabulary_of_its_nominal_world():
     described = {**GRASPING, 'entities': [*GRASPING['entities'][:-1], {
         **GRASPING['entities'][-1],
         'properties': {**GRASPING['entities'][-1]['properties'], 'friction': belief}}]}
-    assert scenario_vocabulary(described) == vocabulary(parse_scenario(GRASPING))
+    assert description_vocabulary(described) == vocabulary(parse_scenario(GRASPING))
 
 
 def test_a_timeline_within_its_vocabulary_passes():
