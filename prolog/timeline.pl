@@ -74,7 +74,8 @@ best_parametrization/8) check its terms the same way before they project
 ```
 ?- make_projection(grasping, grasp_object, [(_, force, [5])], TL),
    \+ occurs(brake, _, TL).
-ERROR: occurs/3: no timeline of scenario grasping has the event brake; ...
+ERROR: occurs/3: no timeline of scenario grasping has an event brake; its
+ERROR: events are break/1, collision/2, drop/1, ...
 ```
 
 A timeline created from data without a `vocabulary` (timeline_create/2)

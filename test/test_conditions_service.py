@@ -65,7 +65,8 @@ def ask(call, text, mode=Q.ALL_SOLUTIONS):
 
 
 def bags(bag_dir):
-    return sorted(os.listdir(bag_dir))
+    """The projections' bags (not a worker's warm-up, which runs in a hidden directory)."""
+    return sorted(name for name in os.listdir(bag_dir) if not name.startswith('.'))
 
 
 def refused(call, bag_dir, text, kind='existence_error'):
