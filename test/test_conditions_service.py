@@ -96,6 +96,14 @@ def test_a_misspelled_fluent_cannot_certify_a_cell(call, bag_dir):
     assert 'in_gripper/1' in message, message
 
 
+def test_an_unknown_quantity_to_prefer_is_refused_before_choosing(call, bag_dir):
+    message = refused(call, bag_dir, f'''{BELIEF},
+        robust_parametrization(S, grasp_object, [(F, force, [3, 5])],
+                               [seed(1), prefer(-max_lod(egg1))], TL,
+                               \\+ occurs(break, _, TL), Best)''')
+    assert 'robust_parametrization/7' in message and 'max_lod(egg1)' in message, message
+
+
 def test_an_unknown_quantity_in_a_condition_is_refused(call, bag_dir):
     message = refused(call, bag_dir, '''outcome_boundary(grasping, grasp_object,
         [(F, force, range(1, 11))], [], TL,
