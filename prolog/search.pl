@@ -790,7 +790,8 @@ prolog:message(error(domain_error(range_parameters, _), _)) -->
 prolog:message(error(domain_error(search_range, range(Low, High)), _)) -->
     [ 'A searched range(Low, High) needs Low < High; found range(~w, ~w)'-[Low, High] ].
 prolog:message(error(domain_error(max_projections(at_least(K)), max_projections(N)),
-                     context(_, trial_worlds(K)))) --> !,
+                     Context)) -->
+    { nonvar(Context), Context = context(_, Worlds), Worlds == trial_worlds(K) }, !,
     [ 'max_projections(~w) cannot afford one trial: a trial over the belief is '-[N],
       'projected in its samples(~w) worlds; give max_projections(~w) or more, '-[K, K],
       'or fewer samples' ].

@@ -60,6 +60,15 @@ test(a_budget_below_one_trial_over_a_belief_is_an_error,
                          [samples(73), chance(0.95), max_projections(20)], _, true,
                          max_load(egg1), _).
 
+test(the_trial_budget_message_says_one_trial, true(sub_string(Msg, _, _, _, "one trial"))) :-
+    catch(search:trial_budget(belief(73, 0.95, 59), 20), E, true),
+    once(message_to_codes(E, Codes)), string_codes(Msg, Codes).
+
+% Its formal term is the coarse pass's, which has no context.
+test(the_coarse_pass_message_says_coarse, true(sub_string(Msg, _, _, _, "coarse pass"))) :-
+    catch(search:boundary_settings([max_projections(3)], 1, 9, _, _, _), E, true),
+    once(message_to_codes(E, Codes)), string_codes(Msg, Codes).
+
 test(a_budget_of_one_trial_over_a_belief_is_enough) :-
     search:trial_budget(belief(73, 0.95, 59), 73).
 
