@@ -16,7 +16,7 @@
             objOf/2,                    % ?Term, ?Object
             timeline_vocabulary_create/2, % +Data:dict, -Vocabulary
             timeline_vocabulary_dict/2, % +Vocabulary, -Dict
-            timeline_condition_terms/3, % :Goal, ?Timeline, -Terms:list
+            timeline_condition_terms/3, % @Goal, ?Timeline, -Terms:list
             timeline_check_term/3       % +Vocabulary, +Context, +Term
           ]).
 :- reexport(temporal).
@@ -557,7 +557,7 @@ forget_vocabulary(Key) :-
     retractall(vocab_term(Key, _, _, _, _)),
     retractall(vocab_object(Key, _)).
 
-%!  timeline_condition_terms(:Goal, ?Timeline, -Terms:list) is det.
+%!  timeline_condition_terms(@Goal, ?Timeline, -Terms:list) is det.
 %
 %   Terms are the fluents, events, quantities, types and objects that the
 %   condition Goal names on the timeline Timeline (a variable, bound to each
