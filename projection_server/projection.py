@@ -59,6 +59,7 @@ __all__ = [
     'start',
     'submit',
     'timeline',
+    'vocabulary',
     'workers',
 ]
 
@@ -250,6 +251,19 @@ def belief_problem(cls: str, key: str, belief: dict[str, Any]) -> str | None:
     """What is wrong with the distribution ``belief`` as property ``key`` of class ``cls``
     (:func:`projection_server.beliefs.problem`); None: nothing."""
     return beliefs.problem(cls, key, belief)
+
+
+def vocabulary(scenario: dict[str, Any]) -> dict[str, Any]:
+    """What any timeline of a projection of ``scenario`` (a description, its properties
+    possibly distributions) can name (:func:`projection_server.timeline.vocabulary.vocabulary`
+    of its nominal world): Prolog checks a query's conditions against it before projecting.
+
+    Raises:
+        ProjectionError: kind ``invalid_scenario`` for a description the simulator refuses.
+    """
+    from projection_server.timeline.vocabulary import vocabulary as of_scenario
+
+    return of_scenario(parse_scenario(beliefs.nominal(scenario)))
 
 
 def _world(scenario: dict[str, Any], world: Sequence[int] | None

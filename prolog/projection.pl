@@ -8,7 +8,10 @@
             projection_default_timeout/1, % -Seconds
             with_query_context/2,       % +Context:dict, :Goal
             current_query_context/1,    % -Context:dict
-            parameter_values/2          % +Range, -Values:list(number)
+            parameter_values/2,         % +Range, -Values:list(number)
+            projection_vocabulary/2,    % +Scenario, -Vocabulary:dict
+            projection_check_condition/4, % +Scenario, ?Timeline, :Condition, +Pred
+            projection_check_quantity/3 % +Scenario, +Quantity, +Pred
           ]).
 :- autoload(library(apply), [maplist/3, foldl/4, include/3]).
 :- autoload(library(error),
@@ -20,11 +23,15 @@
 :- autoload(library(aggregate), [aggregate_all/3]).
 :- autoload(library(solution_sequences), [limit/2]).
 :- use_module(library(janus), [py_call/2]).
-:- meta_predicate with_query_context(+, 0).
+:- meta_predicate
+    with_query_context(+, 0),
+    projection_check_condition(+, ?, 0, +).
 :- use_module(scenario, [scenario_description/2, scenario_entity/3]).
 :- use_module(plan, [plan_template/3]).
 :- use_module(timeline, [timeline_create/2, timeline_exists/1, timeline_remove/1,
-                         occurs/3]).
+                         occurs/3, timeline_vocabulary_create/2,
+                         timeline_condition_terms/3, timeline_check_term/3,
+                         timeline_vocabulary_dict/2]).
 
 /** <module> Simulation-based temporal projection (the paper's section III-B)
 
@@ -116,6 +123,10 @@ on that projection's timeline:
 %   @error domain_error(parameter_value, Name=Value) for a value out of range
 %   @error domain_error(projection_option, O) for an unknown option
 %   @error domain_error(positive_integer, N) for samples(N) with N < 1
+%   @error domain_error(params_combination, C) for a combination C of
+%          only(Combinations) that is none of Params'
+%   @error domain_error(parameter_range, range(Low, High, Step)) for a range
+%          without values (High < Low)
 %   @error domain_error(physics_setting(Name, Range), Value) for a physics
 %          setting out of Range (`between(Min, Max)` or `multiple_of(N)`)
 %   @error domain_error(plan_step, Step), domain_error(plan_length(1, Max), N)
@@ -232,7 +243,16 @@ simulate(Scenario, Program0, Params, Options, Log, step(I, Total, Program, Shown
 only_combinations(Options, Choices, All0, All) :-
     is_list(Options),
     memberchk(only(Combinations), Options), !,
-    include(in_combinations(Choices, Combinations), All0, All).
+    include(in_combinations(Choices, Combinations), All0, All),
+    % A combination that is none of Params' would silently not be projected.
+    findall(Vs, ( member(Values, All),
+                  maplist([choice(_, Name, _), V]>>get_dict(Name, Values, V), Choices, Vs) ),
+            Grid),
+    forall(member(C, Combinations),
+           (   memberchk(C, Grid)
+           ->  true
+           ;   domain_error(params_combination, C)
+           )).
 only_combinations(_, _, All, All).
 
 in_combinations(Choices, Combinations, Values) :-
@@ -428,12 +448,18 @@ parse_param(Program, Formal, Param, choice(Var, Name, Values)) :-
 %   it: a non-empty list, or `range(Low, High, Step)`.
 %
 %   @error type_error(parameter_range, Range) for another term
+%   @error domain_error(parameter_range, range(Low, High, Step)) for High < Low
+%          (no values)
 
 parameter_values(Range, Values) :-
     range_values(Range, Values).
 
 range_values(range(Low, High, Step), Values) :- !,
     must_be(number, Low), must_be(number, High), must_be_positive(Step),
+    (   High >= Low
+    ->  true
+    ;   domain_error(parameter_range, range(Low, High, Step))
+    ),
     N is floor((High - Low) / Step + 1.0e-9),
     numlist(0, N, Is),
     maplist([I, V]>>(V0 is Low + I * Step, V is round(V0 * 1.0e9) / 1.0e9), Is, Values).
@@ -570,10 +596,18 @@ projection_program(Program, Formal) :-
 %   default (the program's, from config/physics.yaml); that of `rate_hz` has
 %   multiple_of: the step rate must be a multiple of the control and logging
 %   rates.
+%
+%   @error existence_error(program, Program) for a Program that is bound to
+%          no registered program (nor `plan`).
 
 projection_physics_setting(Program, Name, Setting) :-
     (   Program == plan                 % a plan: the settings file's defaults
     ->  true
+    ;   atom(Program)
+    ->  (   projection_program(Program, _)
+        ->  true
+        ;   existence_error(program, Program)
+        )
     ;   projection_program(Program, _)
     ),
     py_call('projection_server.projection':physics_settings(Program), Settings),
@@ -581,11 +615,105 @@ projection_physics_setting(Program, Name, Setting) :-
     get_dict(name, Setting, Name0),
     atom_string(Name, Name0).
 
+%!  projection_vocabulary(+Scenario, -Vocabulary:dict) is det.
+%
+%   Vocabulary is what any timeline of a projection of Scenario can name:
+%   `_{fluents: [Name/Arity, ...], events: ..., quantities: ..., objects:
+%   [Object, ...]}`, the fluents, events and quantities the translation
+%   makes of its entities (those of a particle fluid only if it has one)
+%   and its objects (its entities, parts included).  The translation's
+%   rules are the same for every program, so the vocabulary is the
+%   scenario's.  A name or object outside it is an existence_error in
+%   holds/3, occurs/3, quantity/3 and in the conditions of the predicates
+%   that take one (see timeline.pl).
+%
+%   @error existence_error(scenario, Scenario) for an unknown scenario.
+%   @error projection_error(invalid_scenario, Message) for a scenario the
+%          simulator refuses.
+
+projection_vocabulary(Scenario, Dict) :-
+    scenario_vocabulary_data(Scenario, Data),
+    (   Data = error(Class, Value)
+    ->  projection_error(Class, Value)
+    ;   timeline_vocabulary_create(Data, Vocabulary),
+        timeline_vocabulary_dict(Vocabulary, Dict)
+    ).
+
+% vocabulary_of(+Scenario, -Vocabulary): the stored vocabulary of Scenario's timelines,
+% `none` for a scenario the simulator refuses (projecting it says why).
+vocabulary_of(Scenario, Vocabulary) :-
+    scenario_vocabulary_data(Scenario, Data),
+    (   Data = error(_, _)
+    ->  Vocabulary = none
+    ;   timeline_vocabulary_create(Data, Vocabulary)
+    ).
+
+% scenario_vocabulary_data(+Scenario, -Data): the simulator's vocabulary of Scenario's
+% description, or error(Class, Value); kept per description, so that a changed scenario
+% gets its own, and for the most recent ones only (bounded memory).
+:- dynamic scenario_vocabulary/3.       % Hash, Sequence number, Data
+
+scenario_vocabulary_data(Scenario, Data) :-
+    scenario_description(Scenario, Description),
+    variant_sha1(Description, Hash),
+    (   scenario_vocabulary(Hash, _, Data0)
+    ->  Data = Data0
+    ;   % A scenario the simulator refuses has no vocabulary; any other error is a bug
+        % and must not pass for "check nothing".
+        catch(py_call('projection_server.projection':vocabulary(Description), Data),
+              error(python_error('ProjectionError', Value), _),
+              Data = error('ProjectionError', Value)),
+        flag(projection_vocabulary_seq, N, N+1),
+        assertz(scenario_vocabulary(Hash, N, Data)),
+        aggregate_all(count, scenario_vocabulary(_, _, _), Count),
+        Excess is Count - 64,
+        forall(limit(Excess, retract(scenario_vocabulary(_, _, _))), true)
+    ).
+
+%!  projection_check_condition(+Scenario, ?Timeline, :Condition, +Pred) is det.
+%
+%   The fluents, events, quantities, types and objects that Condition, a
+%   goal on the projection's timeline Timeline, names
+%   (timeline_condition_terms/3) are ones a timeline of Scenario can have;
+%   called before projecting by the predicates that take a condition, Pred
+%   (e.g. outcome_probability/7), so that a misspelled name is an error
+%   instead of a condition that is never, or always, true.
+%
+%   @error existence_error(Kind, Term) for the first term that is not (Kind
+%          `fluent`, `event`, `quantity`, `type` or `entity`); the message
+%          names Pred and Scenario and lists the known ones.
+
+projection_check_condition(Scenario, Timeline, Condition, Pred) :-
+    timeline_condition_terms(Condition, Timeline, Terms),
+    (   Terms == []
+    ->  true
+    ;   vocabulary_of(Scenario, Vocabulary),
+        maplist(timeline_check_term(Vocabulary, context(Pred, Scenario)), Terms)
+    ).
+
+%!  projection_check_quantity(+Scenario, +Quantity, +Pred) is det.
+%
+%   Quantity (a term or an atom pattern, as quantity/3 takes it) is one a
+%   timeline of Scenario can have; Pred takes it (e.g. the objective of
+%   best_parametrization/8).
+%
+%   @error existence_error(quantity, Quantity) or existence_error(entity,
+%          Object) if it is not.
+
+projection_check_quantity(Scenario, Quantity, Pred) :-
+    vocabulary_of(Scenario, Vocabulary),
+    timeline_check_term(Vocabulary, context(Pred, Scenario), quantity-Quantity).
+
 %!  projection_default_timeout(-Seconds) is det.
 %
 %   Wall-clock limit of one simulation for make_projection/4.
 
 projection_default_timeout(60).
+
+:- multifile sandbox:safe_primitive/1.
+
+% It reads the scenario store and asks the simulator's vocabulary of it, nothing else.
+sandbox:safe_primitive(projection:projection_vocabulary(_, _)).
 
 :- multifile prolog:error_message//1.
 

@@ -11,7 +11,8 @@
 :- autoload(library(aggregate), [aggregate_all/3]).
 :- autoload(library(pairs), [pairs_keys_values/3]).
 :- use_module(library(janus), [py_call/2]).
-:- use_module(projection, [make_projection/5, parameter_values/2]).
+:- use_module(projection, [make_projection/5, parameter_values/2,
+                            projection_check_condition/4, projection_check_quantity/3]).
 :- use_module(scenario, [scenario_description/2]).
 :- use_module(timeline, [quantity/3]).
 :- meta_predicate robust_parametrization(+, +, +, +, ?, 0, -).
@@ -101,6 +102,13 @@ it).
 %   @error domain_error(scenario_with_beliefs, Scenario) for a scenario whose
 %          properties are all numbers: a certified choice needs a belief
 %   @error domain_error(robust_option, O) for an unknown option
+%   @error domain_error(near_values(N), near(Values)) for a prefer(near(Values))
+%          whose Values are not N, one per parameter
+%   @error existence_error(Kind, Term) for a fluent, event, quantity, type or
+%          object (Kind `entity`) that Condition names on TL, or a prefer(Q)
+%          quantity, that no timeline of Scenario can have, before anything
+%          is projected (projection_check_condition/4): a misspelled name
+%          would certify any cell
 %   @error existence_error(quantity, Q) for a prefer(Q) that a timeline lacks
 %   @error make_projection/5's errors
 
@@ -113,6 +121,9 @@ robust_parametrization(Scenario, Program, Params, Options, TL, Condition, Best) 
     prefer_rule(Prefer, Rule, Near, Sign),
     must_have_beliefs(Scenario),
     cells(Params, Vars, Names, Cells),
+    projection_check_condition(Scenario, TL, Condition, robust_parametrization/7),
+    prefer_known(Rule, Prefer, Scenario),
+    near_values(Rule, Near, Names),
     length(Cells, K),
     (   Batch0 == workers
     ->  py_call('projection_server.projection':workers(), W),
@@ -153,6 +164,22 @@ prefer_rule(-Quantity, prefer, @(none), -1) :- !,
     must_be(callable, Quantity).
 prefer_rule(Quantity, prefer, @(none), 1) :-
     must_be(callable, Quantity).
+
+% near_values(+Rule, +Near, +Names): near(Values) gives a value per parameter (fewer
+% would be matched against the first parameters only).
+near_values(near, Near, Names) :-
+    length(Near, N),
+    length(Names, M),
+    N =\= M, !,
+    domain_error(near_values(M), near(Near)).
+near_values(_, _, _).
+
+% prefer_known(+Rule, +Prefer, +Scenario): a prefer(Quantity) names a quantity the
+% scenario's timelines can have.
+prefer_known(prefer, Prefer, Scenario) :- !,
+    (   Prefer = -Quantity -> true ; Quantity = Prefer ),
+    projection_check_quantity(Scenario, Quantity, robust_parametrization/7).
+prefer_known(_, _, _).
 
 % robust_options(+Options, -Opts, -Pass): this predicate's options and those
 % passed to make_projection/5, all checked before anything is projected.
@@ -331,5 +358,7 @@ params_dict(Names, Values, Dict) :-
 prolog:message(error(domain_error(scenario_with_beliefs, Scenario), _)) -->
     [ 'Scenario ~w has no belief: a certified choice needs one; give a property a '-[Scenario],
       'distribution with scenario_set_property/4 (e.g. uniform(0.2, 0.4))' ].
+prolog:message(error(domain_error(near_values(N), near(Values)), _)) -->
+    [ 'prefer(near(~w)): give ~w values, one per parameter in Params\' order'-[Values, N] ].
 prolog:message(error(domain_error(robust_option, Option), _)) -->
     [ 'robust_parametrization/7 has no option ~q (see its documentation)'-[Option] ].

@@ -31,4 +31,9 @@ test(prefer_near, Rule-Near == near-[5, 0.0]) :-
 test(cells, Cells == [[1, a], [1, b], [2, a], [2, b]]) :-
     robust:cells([(_, f, [1, 2]), (_, p, [a, b])], _, _, Cells).
 
+test(near_values_one_per_parameter, error(domain_error(near_values(2), near([5])))) :-
+    robust:near_values(near, [5], [force, position]).
+test(near_values_of_every_parameter) :-
+    robust:near_values(near, [5, 0.0], [force, position]).
+
 :- end_tests(robust).

@@ -16,7 +16,8 @@
 :- autoload(library(thread), [concurrent/3]).
 :- use_module(projection,
               [make_projection/5, projection_program/2, with_query_context/2,
-               current_query_context/1, parameter_values/2]).
+               current_query_context/1, parameter_values/2,
+               projection_check_condition/4, projection_check_quantity/3]).
 :- use_module(timeline, [quantity/3, timeline_exists/1]).
 :- use_module(robust, [below_certifying_worlds/1]).
 :- use_module(uncertainty, [wilson_interval/4]).
@@ -121,6 +122,10 @@ bindings are undone.  It may also use the parameters' variables.
 %          make_projection/5's domain_error(projection_option, O) for any
 %          other unknown option
 %   @error uninstantiation_error(X) for a bound Timeline or searched variable
+%   @error existence_error(Kind, Term) for a fluent, event, quantity, type or
+%          object (Kind `entity`) that Condition names on Timeline and no
+%          timeline of Scenario can have (projection_check_condition/4),
+%          before anything is projected
 %   @error make_projection/5's errors, such as domain_error(parameter_value,
 %          Name=Value) for a range beyond the program's parameter
 
@@ -137,6 +142,7 @@ outcome_boundary(Scenario, Program, Params, Options, Timeline, Condition, Bounda
     ),
     boundary_settings(Own, Low, High, Tolerance, Max, K),
     check_ends(Program, [searched(Var, Name, Low, High)]),
+    projection_check_condition(Scenario, Timeline, Condition, outcome_boundary/7),
     fixed_combination(Fixed, FixedParams),
     Probe = probe(Scenario, Program, Var, Name, FixedParams, Pass, Timeline, Condition),
     boundaries(Probe, Low, High, Tolerance, Max, K, Boundaries),
@@ -312,6 +318,8 @@ truth(Timeline, TL, Goal, Holds) :-
 %          for P outside (0, 1); domain_error(choosing_worlds(at_most(1000000)),
 %          samples(N)) for more worlds than lie below the certifying ones
 %   @error domain_error(search_range, range(Low, High)) unless Low < High
+%   @error domain_error(max_projections(at_least(N)), max_projections(M)) for a
+%          budget M below one trial over a belief, its samples(N) worlds
 %   @error domain_error(search_option, Option) for outcome_boundary/7's
 %          options; domain_error(max_projections, max_projections(N)),
 %          domain_error(batch, batch(B)) or type_error(integer, K) for
@@ -319,6 +327,11 @@ truth(Timeline, TL, Goal, Holds) :-
 %          domain_error(projection_option, O) for any other unknown option
 %   @error type_error(number, Value) for an Objective whose value is no number
 %   @error uninstantiation_error(X) for a bound Timeline or searched variable
+%   @error existence_error(Kind, Term) for a fluent, event, quantity, type or
+%          object (Kind `entity`) that Constraint names on Timeline, or an
+%          Objective quantity, that no timeline of Scenario can have
+%          (projection_check_condition/4), before anything is projected: a
+%          misspelled Objective would leave every trial without a value
 %   @error make_projection/5's errors
 
 best_parametrization(Scenario, Program, Params, Options, Timeline, Constraint, Objective,
@@ -343,6 +356,7 @@ best_parametrization(Scenario, Program, Params, Options, Timeline, Constraint, O
     option_value(seed, Own, 0, Seed),
     option_value(batch, Own, workers, Batch),
     check_integer(max_projections, Max, 1),
+    trial_budget(Belief, Max),
     must_be(integer, Seed),
     (   Batch == workers
     ->  py_call('projection_server.projection':workers(), Workers)
@@ -350,6 +364,8 @@ best_parametrization(Scenario, Program, Params, Options, Timeline, Constraint, O
         Workers = Batch
     ),
     check_ends(Program, Searched),
+    projection_check_condition(Scenario, Timeline, Constraint, best_parametrization/8),
+    projection_check_quantity(Scenario, Objective, best_parametrization/8),
     fixed_combination(Fixed, FixedParams),
     maplist([searched(_, N, L, H), [N, L, H]]>>true, Searched, Space),
     (   Belief = belief(_, _, _)
@@ -383,6 +399,14 @@ best_parametrization(Scenario, Program, Params, Options, Timeline, Constraint, O
         Best = _{params: AllValues, value: Value, projections: Spent}
     ),
     best_timeline(Run, Values, TL, Timeline).
+
+% trial_budget(+Belief, +Max): over a belief a trial costs its N worlds; a budget
+% below one trial would answer no solution without projecting anything.
+trial_budget(belief(N, _, _), Max) :-
+    Max < N, !,
+    throw(error(domain_error(max_projections(at_least(N)), max_projections(Max)),
+                context(best_parametrization/8, trial_worlds(N)))).
+trial_budget(_, _).
 
 % belief_search(+Own, -Belief): `none`, or belief(N, P, M): samples(N) worlds a trial,
 % chance(P) the probability its Constraint must have, certify(M) fresh worlds.
@@ -765,6 +789,12 @@ prolog:message(error(domain_error(range_parameters, _), _)) -->
       'the parameters give none' ].
 prolog:message(error(domain_error(search_range, range(Low, High)), _)) -->
     [ 'A searched range(Low, High) needs Low < High; found range(~w, ~w)'-[Low, High] ].
+prolog:message(error(domain_error(max_projections(at_least(K)), max_projections(N)),
+                     Context)) -->
+    { nonvar(Context), Context = context(_, Worlds), Worlds == trial_worlds(K) }, !,
+    [ 'max_projections(~w) cannot afford one trial: a trial over the belief is '-[N],
+      'projected in its samples(~w) worlds; give max_projections(~w) or more, '-[K, K],
+      'or fewer samples' ].
 prolog:message(error(domain_error(max_projections(at_least(K)), max_projections(N)), _)) -->
     [ 'max_projections(~w) is smaller than the coarse pass, ~w projections: '-[N, K],
       'give a larger budget or a smaller coarse(K)' ].

@@ -54,6 +54,24 @@ test(a_budget_below_the_coarse_pass_is_an_error,
     outcome_boundary(grasping, grasp_object, [(_, force, range(1, 9))],
                      [max_projections(3)], _, true, _).
 
+test(a_budget_below_one_trial_over_a_belief_is_an_error,
+     error(domain_error(max_projections(at_least(73)), max_projections(20)), _)) :-
+    best_parametrization(grasping, grasp_object, [(_, force, range(1, 11))],
+                         [samples(73), chance(0.95), max_projections(20)], _, true,
+                         max_load(egg1), _).
+
+test(the_trial_budget_message_says_one_trial, true(sub_string(Msg, _, _, _, "one trial"))) :-
+    catch(search:trial_budget(belief(73, 0.95, 59), 20), E, true),
+    once(message_to_codes(E, Codes)), string_codes(Msg, Codes).
+
+% Its formal term is the coarse pass's, which has no context.
+test(the_coarse_pass_message_says_coarse, true(sub_string(Msg, _, _, _, "coarse pass"))) :-
+    catch(search:boundary_settings([max_projections(3)], 1, 9, _, _, _), E, true),
+    once(message_to_codes(E, Codes)), string_codes(Msg, Codes).
+
+test(a_budget_of_one_trial_over_a_belief_is_enough) :-
+    search:trial_budget(belief(73, 0.95, 59), 73).
+
 test(a_smaller_coarse_pass_fits_a_small_budget, K == 3) :-
     search:boundary_settings([max_projections(3), coarse(3)], 1, 9, _, _, K).
 

@@ -13,7 +13,11 @@
             occurs/2,                   % ?Event, ?Time
             quantity/2,                 % ?Quantity, ?Value
             typeOf/2,                   % ?Term, ?Type
-            objOf/2                     % ?Term, ?Object
+            objOf/2,                    % ?Term, ?Object
+            timeline_vocabulary_create/2, % +Data:dict, -Vocabulary
+            timeline_vocabulary_dict/2, % +Vocabulary, -Dict
+            timeline_condition_terms/3, % @Goal, ?Timeline, -Terms:list
+            timeline_check_term/3       % +Vocabulary, +Context, +Term
           ]).
 :- reexport(temporal).
 :- autoload(library(apply), [maplist/3]).
@@ -22,7 +26,7 @@
             [ must_be/2, type_error/2, existence_error/2 ]).
 :- autoload(library(lists), [list_to_set/2, member/2]).
 :- autoload(library(pairs), [pairs_values/2]).
-:- autoload(library(solution_sequences), [distinct/2]).
+:- autoload(library(solution_sequences), [distinct/2, limit/2]).
 
 /** <module> Timelines: fluents and events of one projection
 
@@ -54,6 +58,29 @@ any term named Name, whatever its arguments, as the paper writes
 `\+ occurs(break, _, Timeline)` for "no break(_) event".  The atom stays
 unbound to the stored term.  Other terms are unified with the stored terms.
 
+*Vocabulary*: a timeline made by a projection knows what any timeline of
+its scenario can name: the fluents, events and quantities the translation
+makes (each a name and an arity) and the scenario's objects (its entities,
+parts, robots and grippers included).  A fluent, event or quantity given to
+holds/3, occurs/3, quantity/3 (and their query forms, typeOf/2 and objOf/2)
+that no timeline of the scenario can have is an existence_error, not a
+silent failure: `\+ occurs(brake, _, TL)` would otherwise be true of every
+timeline.  A known term that did not happen fails as before; variables and
+partly bound terms range freely.  The predicates that take a condition
+(outcome_probability/7, robust_parametrization/7, outcome_boundary/7,
+best_parametrization/8) check its terms the same way before they project
+(timeline_condition_terms/3):
+
+```
+?- make_projection(grasping, grasp_object, [(_, force, [5])], TL),
+   \+ occurs(brake, _, TL).
+ERROR: occurs/3: no timeline of scenario grasping has an event brake; its
+ERROR: events are break/1, collision/2, drop/1, ...
+```
+
+A timeline created from data without a `vocabulary` (timeline_create/2)
+takes any term.
+
 *Query form*: holds/2, occurs/2, quantity/2, typeOf/2 and objOf/2 evaluate
 on the _current timeline_, so that the paper's query runs as written:
 
@@ -84,7 +111,11 @@ answer.
     tl_fluent/3,                        % Timeline, Term, interval(S, E)
     tl_event/3,                         % Timeline, Term, Time
     tl_quantity/3,                      % Timeline, Term, Value
-    tl_meta/2.                          % Timeline, Dict
+    tl_meta/2,                          % Timeline, Dict
+    tl_vocabulary/2,                    % Timeline, Vocabulary key
+    vocab_registered/2,                 % Key, Sequence number
+    vocab_term/5,                       % Key, Kind, Name, Arity, ArgKinds
+    vocab_object/2.                     % Key, Object
 
                  /*******************************
                  *         THE STORE            *
@@ -105,6 +136,10 @@ answer.
 %       An event whose Start and End are equal (within time_epsilon/1)
 %       happens at the point Start.
 %     - M is a dict, kept as the timeline property meta(M).
+%     - The optional `vocabulary` is what any timeline of the projection's
+%       scenario can name (timeline_vocabulary_create/2); with it, holds/3,
+%       occurs/3 and quantity/3 raise an existence_error for a term outside
+%       it (see the module doc).  Without it, any term is taken.
 %
 %   The new timeline becomes the current timeline (see the module doc).
 %   Records that occur twice are stored once.
@@ -116,6 +151,7 @@ answer.
 %   @error type_error(atomic, A) if an argument is not an atom, string or
 %          number; type_error(time, _) or domain_error(time, _) for bad
 %          times (see temporal:must_be_time/1).
+%   @error type_error(vocabulary, V) for a malformed vocabulary.
 
 timeline_create(Data, TL) :-
     must_be(dict, Data),
@@ -127,6 +163,10 @@ timeline_create(Data, TL) :-
     must_be(list, Es0),
     must_be(list, Qs0),
     must_be(dict, Meta),
+    (   get_dict(vocabulary, Data, VData)
+    ->  timeline_vocabulary_create(VData, Vocabulary)
+    ;   Vocabulary = none
+    ),
     maplist(interval_record(fluent_record), Fs0, Fs1),
     maplist(interval_record(event_record), Es0, Es1),
     maplist(quantity_record, Qs0, Qs1),
@@ -137,7 +177,7 @@ timeline_create(Data, TL) :-
     with_mutex(timeline_store, flag(timeline_seq, N0, N0+1)),
     N is N0+1,
     format(atom(TL), 'timeline_~d', [N]),
-    catch(store(TL, N, Fs, Es, Qs, Meta), E,
+    catch(store(TL, N, Fs, Es, Qs, Meta, Vocabulary), E,
           ( remove_facts(TL), throw(E) )).
 
 required_key(Key, Dict, Value) :-
@@ -151,11 +191,15 @@ optional_key(Key, Dict, Default, Value) :-
 
 % The registration is asserted last, so other threads never see a
 % timeline whose facts are still being added.
-store(TL, N, Fs, Es, Qs, Meta) :-
+store(TL, N, Fs, Es, Qs, Meta, Vocabulary) :-
     forall(member(T-I, Fs), assertz(tl_fluent(TL, T, I))),
     forall(member(T-Time, Es), assertz(tl_event(TL, T, Time))),
     forall(member(T-V, Qs), assertz(tl_quantity(TL, T, V))),
     assertz(tl_meta(TL, Meta)),
+    (   Vocabulary = vocabulary(Key)
+    ->  assertz(tl_vocabulary(TL, Key))
+    ;   true
+    ),
     assertz(tl_registered(TL, N)).
 
 interval_record(Type, Record, Term-interval(S, E)) :-
@@ -208,7 +252,8 @@ remove_facts(TL) :-
     retractall(tl_fluent(TL, _, _)),
     retractall(tl_event(TL, _, _)),
     retractall(tl_quantity(TL, _, _)),
-    retractall(tl_meta(TL, _)).
+    retractall(tl_meta(TL, _)),
+    retractall(tl_vocabulary(TL, _)).
 
 %!  timeline_exists(?Timeline) is nondet.
 %
@@ -231,6 +276,9 @@ timeline_exists(TL) :-
 %     - meta(Dict): the `meta` dict it was created with (`_{}` if none)
 %     - fluents(Count), events(Count), quantities(Count): number of
 %       fluent intervals, events and quantities stored.
+%     - vocabulary(Dict): what any timeline of its scenario can name,
+%       `_{fluents: [Name/Arity, ...], events: ..., quantities: ...,
+%       objects: [Object, ...]}` (a timeline created with a vocabulary).
 
 timeline_property(TL, Prop) :-
     timeline_exists(TL),
@@ -240,6 +288,9 @@ property(meta(M), TL) :- tl_meta(TL, M).
 property(fluents(N), TL) :- aggregate_all(count, tl_fluent(TL, _, _), N).
 property(events(N), TL) :- aggregate_all(count, tl_event(TL, _, _), N).
 property(quantities(N), TL) :- aggregate_all(count, tl_quantity(TL, _, _), N).
+property(vocabulary(V), TL) :-
+    tl_vocabulary(TL, Key),
+    timeline_vocabulary_dict(vocabulary(Key), V).
 
 %!  timeline_fluent_intervals(?Fluent, -Intervals:list, +Timeline) is nondet.
 %
@@ -249,10 +300,14 @@ property(quantities(N), TL) :- aggregate_all(count, tl_quantity(TL, _, _), N).
 %
 %   @error existence_error(timeline, Timeline) if there is no such timeline.
 %   @error type_error(callable, Fluent) if Fluent is not a term.
+%   @error existence_error(fluent, Fluent) or existence_error(entity, Object)
+%          for a fluent or object that no timeline of Timeline's scenario can
+%          have (see the module doc).
 
 timeline_fluent_intervals(F, Intervals, TL) :-
     must_be_timeline(TL),
     must_be_pattern(F),
+    known_on(TL, fluent, F, timeline_fluent_intervals/3),
     (   ground(F)
     ->  once(tl_fluent(TL, F, _))
     ;   distinct(F, tl_fluent(TL, F, _))
@@ -283,6 +338,11 @@ timeline_fluent_intervals(F, Intervals, TL) :-
 %   @error type_error(callable, Fluent) if Fluent is bound to a non-term
 %          (a number or string).
 %   @error type_error(time, Time) if Time is ground but not a time.
+%   @error existence_error(fluent, Fluent) for a fluent that no timeline of
+%          Timeline's scenario can have (its name, or its name with its
+%          arity); existence_error(entity, Object) for an argument that is
+%          no object of that scenario.  The message lists the known ones.
+%          Only timelines with a vocabulary (those of projections) check.
 
 holds(F, T, TL) :-
     record_at(fluent, F, T, TL).
@@ -301,7 +361,9 @@ holds(F, T, TL) :-
 %   Event may be an atom pattern (see the module doc):
 %   `occurs(break, _, TL)` is true if a break(_) event happened.
 %
-%   @error as for holds/3, with type_error(callable, Event).
+%   @error as for holds/3, with type_error(callable, Event) and
+%          existence_error(event, Event): `occurs(brake, _, TL)` is an error
+%          where a timeline's scenario has break(_) events and no brake.
 
 occurs(Ev, T, TL) :-
     record_at(event, Ev, T, TL).
@@ -312,6 +374,7 @@ occurs(Ev, T, TL) :-
 record_at(Kind, P, T, TL) :-
     must_be_timeline(TL),
     must_be_pattern(P),
+    known_on(TL, Kind, P, Kind),   % the context is the kind's predicate
     (   ground(T)
     ->  must_be_time(T),
         (   ground(P)
@@ -350,11 +413,13 @@ at_time(event, T, Time) :-
 %   Value in Timeline.  Quantity may be an atom pattern (see the module
 %   doc).
 %
-%   @error as for holds/3, with type_error(callable, Quantity).
+%   @error as for holds/3, with type_error(callable, Quantity) and
+%          existence_error(quantity, Quantity).
 
 quantity(Q, V, TL) :-
     must_be_timeline(TL),
     must_be_pattern(Q),
+    known_on(TL, quantity, Q, quantity/3),
     tl_quantity(TL, Term, V),
     matches(Q, Term).
 
@@ -404,6 +469,268 @@ must_be_pattern(P) :-
 must_be_timeline(TL) :-
     must_be(atom, TL),
     (   tl_registered(TL, _) -> true ; existence_error(timeline, TL) ).
+
+                 /*******************************
+                 *          VOCABULARY          *
+                 *******************************/
+
+%!  timeline_vocabulary_create(+Data:dict, -Vocabulary) is det.
+%
+%   Vocabulary is the stored vocabulary Data, the `vocabulary` of a
+%   projection's timeline (projection_server/timeline/vocabulary.py):
+%   `_{fluents: Fs, events: Es, quantities: Qs, objects: Os}`, with Fs, Es
+%   and Qs lists of `[Name, ArgKinds]` (ArgKinds a list of `object` or
+%   `property`, one per argument) and Os the scenario's objects.  Names may
+%   be atoms or strings.  The same Data gives the same Vocabulary: the
+%   timelines of one scenario share theirs.
+%
+%   @error type_error(vocabulary, Data) if Data is not of that form.
+
+timeline_vocabulary_create(Data, vocabulary(Key)) :-
+    (   vocabulary_term(Data, Term)
+    ->  true
+    ;   type_error(vocabulary, Data)
+    ),
+    variant_sha1(Term, Key),
+    (   vocab_registered(Key, _)
+    ->  true
+    ;   with_mutex(timeline_vocabulary, register_vocabulary(Key, Term))
+    ).
+
+vocabulary_term(Data, v(Fs, Es, Qs, Os)) :-
+    is_dict(Data),
+    get_dict(fluents, Data, Fs0), vocabulary_names(Fs0, Fs),
+    get_dict(events, Data, Es0), vocabulary_names(Es0, Es),
+    get_dict(quantities, Data, Qs0), vocabulary_names(Qs0, Qs),
+    get_dict(objects, Data, Os0), is_list(Os0),
+    maplist(text_atom, Os0, Os1),
+    sort(Os1, Os).
+
+vocabulary_names(L0, L) :-
+    is_list(L0),
+    maplist(vocabulary_name, L0, L1),
+    sort(L1, L).
+
+vocabulary_name([Name0, Kinds0], Name-Kinds) :-
+    text_atom(Name0, Name),
+    is_list(Kinds0),
+    maplist(text_atom, Kinds0, Kinds),
+    forall(member(K, Kinds), memberchk(K, [object, property])).
+
+%!  timeline_vocabulary_dict(+Vocabulary, -Dict) is det.
+%
+%   Dict is Vocabulary as `_{fluents: [Name/Arity, ...], events: ...,
+%   quantities: ..., objects: [Object, ...]}`, each list sorted.
+
+timeline_vocabulary_dict(vocabulary(Key), V) :-
+    known(Key, fluent, Fs), known(Key, event, Es), known(Key, quantity, Qs),
+    known(Key, entity, Os),
+    V = _{fluents: Fs, events: Es, quantities: Qs, objects: Os}.
+
+text_atom(T, A) :-
+    (   atom(T) -> A = T ; string(T), atom_string(A, T) ).
+
+% register_vocabulary(+Key, +Term): store it, and forget the oldest
+% vocabularies no timeline has beyond the flag timeline_max_vocabularies, so
+% that a stream of scenarios with new objects runs in bounded memory.
+:- create_prolog_flag(timeline_max_vocabularies, 64, [type(integer), keep(true)]).
+
+register_vocabulary(Key, _) :-
+    vocab_registered(Key, _), !.
+register_vocabulary(Key, v(Fs, Es, Qs, Os)) :-
+    forall(( member(Kind-L, [fluent-Fs, event-Es, quantity-Qs]),
+             member(Name-Kinds, L) ),
+           ( length(Kinds, Arity),
+             assertz(vocab_term(Key, Kind, Name, Arity, Kinds)) )),
+    forall(member(O, Os), assertz(vocab_object(Key, O))),
+    flag(timeline_vocabulary_seq, N, N+1),
+    assertz(vocab_registered(Key, N)),
+    current_prolog_flag(timeline_max_vocabularies, Max),
+    aggregate_all(count, vocab_registered(_, _), Count),
+    Excess is Count - Max,
+    forall(limit(Excess, ( vocab_registered(Old, _), Old \== Key,
+                           \+ tl_vocabulary(_, Old) )),
+           forget_vocabulary(Old)).
+
+forget_vocabulary(Key) :-
+    retractall(vocab_registered(Key, _)),
+    retractall(vocab_term(Key, _, _, _, _)),
+    retractall(vocab_object(Key, _)).
+
+%!  timeline_condition_terms(@Goal, ?Timeline, -Terms:list) is det.
+%
+%   Terms are the fluents, events, quantities, types and objects that the
+%   condition Goal names on the timeline Timeline (a variable, bound to each
+%   projection's timeline later), as `Kind-Term` with Kind `fluent`,
+%   `event`, `quantity`, `type` or `entity`: the first arguments of its
+%   holds/3, occurs/3, quantity/3 and timeline_fluent_intervals/3 calls on
+%   Timeline, of its holds/2, occurs/2 and quantity/2 calls (on the current
+%   timeline, which is Timeline's while the condition runs), and the bound
+%   second arguments of typeOf/2 and objOf/2.  Goal is walked through the
+%   control constructs and the all-solutions and aggregation predicates
+%   (`,`, `;`, `->`, `*->`, `\+`, not/1, call/1, once/1, ignore/1, forall/2,
+%   findall/3,4, aggregate_all/3,4, bagof/3, setof/3, ...); what it calls
+%   otherwise is not looked into.  Unbound terms are left out.
+
+timeline_condition_terms(Goal, TL, Terms) :-
+    phrase(condition_terms(Goal, TL), Terms).
+
+condition_terms(G, _) --> { var(G) }, !.
+condition_terms(_:G, TL) --> !, condition_terms(G, TL).
+condition_terms(G, TL) --> { inner_goals(G, TL, Gs) }, !, inner_terms(Gs, TL).
+condition_terms(G, TL) --> { named_term(G, TL, Kind, Term) }, !,
+    (   { var(Term) } -> [] ; [Kind-Term] ).
+condition_terms(_, _) --> [].
+
+inner_terms([], _) --> [].
+inner_terms([G|Gs], TL) --> condition_terms(G, TL), inner_terms(Gs, TL).
+
+% inner_goals(+Goal, +TL, -Goals): the goals that Goal calls.
+inner_goals((A, B), _, [A, B]).
+inner_goals((A ; B), _, [A, B]).
+inner_goals((A -> B), _, [A, B]).
+inner_goals((A *-> B), _, [A, B]).
+inner_goals(\+ A, _, [A]).
+inner_goals(not(A), _, [A]).
+inner_goals(call(A), _, [A]).
+inner_goals(once(A), _, [A]).
+inner_goals(ignore(A), _, [A]).
+inner_goals(forall(A, B), _, [A, B]).
+inner_goals(findall(_, A, _), _, [A]).
+inner_goals(findall(_, A, _, _), _, [A]).
+inner_goals(aggregate_all(_, A, _), _, [A]).
+inner_goals(aggregate_all(_, _, A, _), _, [A]).
+inner_goals(bagof(_, A, _), _, [B]) :- strip_carets(A, B).
+inner_goals(setof(_, A, _), _, [B]) :- strip_carets(A, B).
+inner_goals(aggregate(_, A, _), _, [B]) :- strip_carets(A, B).
+inner_goals(_^A, _, [A]).
+inner_goals(limit(_, A), _, [A]).
+inner_goals(offset(_, A), _, [A]).
+inner_goals(order_by(_, A), _, [A]).
+inner_goals(distinct(A), _, [A]).
+inner_goals(distinct(_, A), _, [A]).
+inner_goals(call_nth(A, _), _, [A]).
+inner_goals(catch(A, _, B), _, [A, B]).
+inner_goals(with_timeline(T, A), TL, Gs) :-
+    (   T == TL -> Gs = [A] ; Gs = [] ).  % another timeline's terms: not known here
+
+strip_carets(G, G) :- var(G), !.
+strip_carets(_^G0, G) :- !, strip_carets(G0, G).
+strip_carets(G, G).
+
+% named_term(+Goal, +TL, -Kind, -Term): Goal names Term of Kind on TL.
+named_term(holds(F, _, T), TL, fluent, F) :- T == TL.
+named_term(occurs(E, _, T), TL, event, E) :- T == TL.
+named_term(quantity(Q, _, T), TL, quantity, Q) :- T == TL.
+named_term(timeline_fluent_intervals(F, _, T), TL, fluent, F) :- T == TL.
+named_term(holds(F, _), _, fluent, F).
+named_term(occurs(E, _), _, event, E).
+named_term(quantity(Q, _), _, quantity, Q).
+named_term(typeOf(_, Type), _, type, Type).
+named_term(objOf(_, Object), _, entity, Object).
+
+%!  timeline_check_term(+Vocabulary, +Context, +Term) is det.
+%
+%   Term, `Kind-Term` as timeline_condition_terms/3 gives it, is one that a
+%   timeline of Vocabulary can have (see the module doc).  Context is
+%   `context(Predicate, Scenario)`, for the message.  Vocabulary `none`
+%   takes any term.
+%
+%   @error existence_error(Kind, Term) if it is not; for an argument that is
+%          no object, existence_error(entity, Object).
+
+timeline_check_term(none, _, _) :- !.
+timeline_check_term(vocabulary(Key), Context, Kind-Term) :-
+    known_term(Kind, Key, Term, Context).
+
+% known_on(+TL, +Kind, +Pattern, +Pred): Pattern is one that TL's vocabulary
+% has, if TL has a vocabulary.
+known_on(_, _, P, _) :-
+    var(P), !.
+known_on(TL, Kind, P, Pred) :-
+    (   tl_vocabulary(TL, Key)
+    ->  kind_predicate(Kind, Pred, Pred1),
+        known_term(Kind, Key, P, context(Pred1, timeline(TL)))
+    ;   true
+    ).
+
+kind_predicate(fluent, fluent, holds/3) :- !.
+kind_predicate(event, event, occurs/3) :- !.
+kind_predicate(_, Pred, Pred).
+
+% known_term(+Kind, +Key, +Term, +Context)
+known_term(_, _, Term, _) :-
+    var(Term), !.
+known_term(entity, Key, Object, Context) :- !,
+    known_object(Key, Object, Context).
+known_term(type, Key, Type, Context) :- !,
+    (   ( Kind = event ; Kind = fluent ),
+        (   vocab_term(Key, Kind, Type, _, _)
+        ;   type_alias(Type, Name), vocab_term(Key, Kind, Name, _, _)
+        )
+    ->  true
+    ;   unknown(type, Type, Key, Context)
+    ).
+known_term(Kind, Key, Term, Context) :-
+    atom(Term), !,
+    (   vocab_term(Key, Kind, Term, _, _)
+    ->  true
+    ;   name_alias(Term, Name),
+        vocab_term(Key, Kind, Name, _, _)
+    ->  true
+    ;   unknown(Kind, Term, Key, Context)
+    ).
+known_term(Kind, Key, Term, Context) :-
+    compound(Term), !,
+    compound_name_arity(Term, Name, Arity),
+    (   vocab_term(Key, Kind, Name, Arity, Kinds)
+    ->  known_arguments(Kinds, 1, Term, Key, Context)
+    ;   unknown(Kind, Term, Key, Context)
+    ).
+known_term(_, _, _, _).         % not a term: its type error comes later
+
+known_arguments([], _, _, _, _).
+known_arguments([K|Ks], I, Term, Key, Context) :-
+    (   K == object
+    ->  arg(I, Term, A),
+        known_object(Key, A, Context)
+    ;   true
+    ),
+    I1 is I + 1,
+    known_arguments(Ks, I1, Term, Key, Context).
+
+known_object(Key, A, Context) :-
+    (   var(A)
+    ->  true
+    ;   atom(A), vocab_object(Key, A)
+    ->  true
+    ;   unknown(entity, A, Key, Context)
+    ).
+
+% unknown(+Kind, +Term, +Key, +Context): the existence error of Term, its
+% context naming the predicate, the scenario and the known terms of Kind.
+unknown(Kind, Term, Key, context(Pred, Source)) :-
+    known(Key, Kind, Known),
+    source_scenario(Source, Scenario),
+    throw(error(existence_error(Kind, Term),
+                context(Pred, vocabulary(Scenario, Known)))).
+
+known(Key, entity, Known) :- !,
+    findall(O, vocab_object(Key, O), Known).
+known(Key, type, Known) :- !,
+    findall(T, ( member(K, [event, fluent]), vocab_term(Key, K, N, _, _),
+                 type_name(N, T) ), Known0),
+    sort(Known0, Known).
+known(Key, Kind, Known) :-
+    findall(N/A, vocab_term(Key, Kind, N, A, _), Known).
+
+source_scenario(timeline(TL), Scenario) :- !,
+    (   tl_meta(TL, Meta), get_dict(scenario, Meta, S0), text_atom(S0, S)
+    ->  Scenario = S
+    ;   Scenario = timeline(TL)
+    ).
+source_scenario(Scenario, Scenario).
+
 
                  /*******************************
                  *          QUERY FORM          *
@@ -480,8 +807,13 @@ quantity(Q, V) :-
 %   @error type_error(callable, Term) if Term is bound to a non-term.
 %   @error existence_error(timeline, current) if Term is unbound and there
 %          is no timeline.
+%   @error existence_error(type, Type) for a Type that names no event or
+%          fluent a timeline of the current timeline's scenario can have
+%          (`droping`), if that timeline has a vocabulary (see the module
+%          doc).
 
 typeOf(Term, Type) :-
+    known_on_current(type, Type, typeOf/2),
     timeline_term(Term),
     functor(Term, Name, _),
     (   nonvar(Type)
@@ -515,9 +847,11 @@ type_alias(falling, fall).
 %   are not objects.  Each object is given once.  If Term is unbound, it
 %   ranges over the events and fluents of the current timeline.
 %
-%   @error as for typeOf/2.
+%   @error as for typeOf/2, and existence_error(entity, Object) for an
+%          Object that is none of the current timeline's scenario.
 
 objOf(Term, Obj) :-
+    known_on_current(entity, Obj, objOf/2),
     timeline_term(Term),
     compound(Term),
     Term =.. [_|Args],
@@ -533,6 +867,17 @@ include_atoms([], []).
 include_atoms([H|T0], L) :-
     (   atom(H) -> L = [H|T] ; L = T ),
     include_atoms(T0, T).
+
+% known_on_current(+Kind, ?Term, +Pred): Term is known to the current
+% timeline's vocabulary, if there is one.
+known_on_current(_, Term, _) :-
+    var(Term), !.
+known_on_current(Kind, Term, Pred) :-
+    (   current_timeline(TL),
+        tl_vocabulary(TL, Key)
+    ->  known_term(Kind, Key, Term, context(Pred, timeline(TL)))
+    ;   true
+    ).
 
 % timeline_term(?Term): Term is checked if bound, else enumerated from the
 % distinct event and fluent terms of the current timeline.
@@ -581,5 +926,40 @@ sandbox:safe_primitive(timeline:current_timeline(_)).
 prolog:message(error(existence_error(timeline, current), _)) -->
     [ 'No timeline exists: holds/2, occurs/2 and the other query forms ',
       'use the most recently created timeline' ].
+prolog:message(error(existence_error(Kind, Term), Context)) -->
+    { nonvar(Context), Context = context(Pred, Known0),
+      nonvar(Known0), Known0 = vocabulary(S, Known)
+    }, !,
+    vocabulary_message(Kind, Term, Pred, S, Known).
 prolog:message(error(existence_error(timeline, TL), _)) -->
     [ 'Unknown timeline: ~p (created timelines are listed by timeline_exists/1)'-[TL] ].
+
+vocabulary_message(entity, Object, Pred, S, Known) --> !,
+    { atomic_list_concat(Known, ', ', List) },
+    [ '~w: ~q is no object of '-[Pred, Object] ], scenario(S),
+    [ ': its objects are ~w'-[List] ].
+vocabulary_message(type, Type, Pred, S, Known) --> !,
+    { atomic_list_concat(Known, ', ', List) },
+    [ '~w: no timeline of '-[Pred] ], scenario(S),
+    [ ' has an event or fluent of type ~q; the types are ~w'-[Type, List] ].
+vocabulary_message(Kind, Term, Pred, S, Known) -->
+    { maplist(indicator_atom, Known, Ts),
+      atomic_list_concat(Ts, ', ', List),
+      kind_words(Kind, Article, Plural),
+      (   Known = [Name/_|_] -> true ; Name = break )
+    },
+    [ '~w: no timeline of '-[Pred] ], scenario(S),
+    [ ' has ~w ~w ~q; its ~w are ~w (an atom such as ~w stands for '-
+      [Article, Kind, Term, Plural, List, Name],
+      'any term of that name)' ].
+
+indicator_atom(N/A, T) :-
+    format(atom(T), '~w/~w', [N, A]).
+
+kind_words(event, an, events) :- !.
+kind_words(quantity, a, quantities) :- !.
+kind_words(Kind, a, Plural) :-
+    atom_concat(Kind, s, Plural).
+
+scenario(timeline(TL)) --> !, [ 'the scenario of ~w'-[TL] ].
+scenario(S) --> [ 'scenario ~w'-[S] ].

@@ -257,6 +257,116 @@ message_to_codes(E, Codes) :-
     '$messages':translate_message(E, Lines, []),
     with_output_to(codes(Codes), print_message_lines(current_output, '', Lines)).
 
+
+% vocabulary: what a projection's timeline can name (timeline/vocabulary.py's form)
+grasp_vocabulary(_{ fluents: [["in_gripper", ["object"]], [contact, [object, object]],
+                              [upside_down, [object]]],
+                    events: [[break, [object]], [slip, [object]], [drop, [object]]],
+                    quantities: [[max_load, [object]], [sampled, [object, property]]],
+                    objects: ["egg1", table1, pr2_robot, pancake1] }).
+
+with_vocabulary(TL) :-
+    grasp_vocabulary(V),
+    timeline_create(_{ fluents: [[in_gripper, [egg1], 1.0, 2.0],
+                                 [contact, [egg1, pr2_robot], 1.0, 2.0]],
+                       events: [[break, [egg1], 1.5, 1.5]],
+                       quantities: [[max_load, [egg1], 12.0]],
+                       vocabulary: V, meta: _{scenario: "grasping"} }, TL).
+
+test(an_unknown_event_is_an_existence_error, error(existence_error(event, brake), _)) :-
+    with_vocabulary(TL), \+ occurs(brake, _, TL).
+test(an_unknown_fluent_is_an_existence_error,
+     error(existence_error(fluent, in_griper(egg1)), _)) :-
+    with_vocabulary(TL), holds(in_griper(egg1), _, TL).
+test(an_unknown_quantity_is_an_existence_error,
+     error(existence_error(quantity, max_lod(egg1)), _)) :-
+    with_vocabulary(TL), quantity(max_lod(egg1), _, TL).
+test(an_object_not_in_the_scenario_is_an_existence_error,
+     error(existence_error(entity, egg2), _)) :-
+    with_vocabulary(TL), occurs(break(egg2), _, TL).
+test(an_object_in_a_later_argument_is_checked, error(existence_error(entity, gripper), _)) :-
+    with_vocabulary(TL), holds(contact(egg1, gripper), _, TL).
+test(a_known_name_with_another_arity_is_an_existence_error,
+     error(existence_error(event, slip(egg1, fast)), _)) :-
+    with_vocabulary(TL), occurs(slip(egg1, fast), _, TL).
+test(a_known_event_that_did_not_happen_fails, fail) :-
+    with_vocabulary(TL), occurs(slip, _, TL).
+test(a_known_object_that_did_not_break_fails, fail) :-
+    with_vocabulary(TL), occurs(break(pancake1), _, TL).
+test(a_known_quantity_absent_from_the_timeline_fails, fail) :-
+    with_vocabulary(TL), quantity(sampled(egg1, friction), _, TL).
+test(a_property_argument_is_not_an_object, fail) :-
+    with_vocabulary(TL), quantity(sampled(egg1, no_such_property), _, TL).
+test(variables_range_freely, Es == [break(egg1)]) :-
+    with_vocabulary(TL), findall(E, occurs(E, _, TL), Es).
+test(a_partly_bound_term_ranges_freely, Os == [egg1]) :-
+    with_vocabulary(TL), findall(O, holds(in_gripper(O), _, TL), Os).
+test(an_atom_pattern_of_a_known_name_matches, [T == 1.5]) :-
+    with_vocabulary(TL), occurs(break, T, TL).
+test(an_alias_of_a_known_name_is_known, fail) :-
+    with_vocabulary(TL), holds(upsidedown, _, TL).
+test(the_query_form_checks_the_current_timeline, error(existence_error(event, brake), _)) :-
+    with_vocabulary(_), occurs(brake, _).
+test(fluent_intervals_check_the_fluent, error(existence_error(fluent, in_griper), _)) :-
+    with_vocabulary(TL), timeline_fluent_intervals(in_griper, _, TL).
+test(an_unknown_type_is_an_existence_error, error(existence_error(type, droping), _)) :-
+    with_vocabulary(_), typeOf(_, droping).
+test(a_known_gerund_is_a_type, [Es == [break(egg1)]]) :-
+    with_vocabulary(_), findall(E, typeOf(E, breaking), Es).
+test(objof_an_unknown_object_is_an_existence_error, error(existence_error(entity, eg1), _)) :-
+    with_vocabulary(_), objOf(_, eg1).
+test(a_timeline_without_vocabulary_takes_any_name, fail) :-
+    with_egg(TL), occurs(brake, _, TL).
+test(one_scenarios_timelines_share_their_vocabulary, V1 == V2) :-
+    grasp_vocabulary(D),
+    timeline_vocabulary_create(D, V1),
+    put_dict(objects, D, [pancake1, egg1, table1, pr2_robot], D2),
+    timeline_vocabulary_create(D2, V2).
+test(a_malformed_vocabulary_is_a_type_error, error(type_error(vocabulary, _))) :-
+    timeline_create(_{fluents: [], events: [], vocabulary: _{fluents: []}}, _).
+test(the_vocabulary_is_a_property, Es == [break/1, drop/1, slip/1]) :-
+    with_vocabulary(TL), timeline_property(TL, vocabulary(V)), get_dict(events, V, Es).
+test(the_message_names_the_term_and_the_known_ones) :-
+    with_vocabulary(TL),
+    catch(occurs(brake, _, TL), E, true),
+    message_string(E, Msg),
+    assertion(sub_string(Msg, _, _, _, "brake")),
+    assertion(sub_string(Msg, _, _, _, "scenario grasping")),
+    assertion(sub_string(Msg, _, _, _, "break/1, drop/1, slip/1")).
+test(the_object_message_lists_the_objects) :-
+    with_vocabulary(TL),
+    catch(holds(in_gripper(egg2), _, TL), E, true),
+    message_string(E, Msg),
+    assertion(sub_string(Msg, _, _, _, "egg2 is no object of scenario grasping")),
+    assertion(sub_string(Msg, _, _, _, "egg1, pancake1, pr2_robot, table1")).
+
+% the terms a condition names on its timeline, before any timeline exists
+test(a_condition_names_its_terms_through_negation_and_all_solutions,
+     Terms =@= [event-brake, fluent-in_griper(_), quantity-max_lod(egg1), event-slip(egg1),
+                fluent-on(egg1, _), type-dropping, entity-egg1]) :-
+    timeline_condition_terms(
+        user:( \+ occurs(brake, _, TL),
+               findall(X, holds(in_griper(X), _, TL), _),
+               forall(quantity(max_lod(egg1), V, TL), V > 1),
+               (   aggregate_all(count, occurs(slip(egg1), _, TL), 0)
+               ->  true
+               ;   not(holds(on(egg1, _), _))
+               ),
+               occurs(E, _, TL), typeOf(E, dropping), objOf(E, egg1) ),
+        TL, Terms).
+test(a_condition_on_another_timeline_is_not_this_ones, Terms == []) :-
+    timeline_condition_terms(( occurs(brake, _, Other), Other \== TL ), TL, Terms).
+test(unbound_terms_are_left_out, Terms == []) :-
+    timeline_condition_terms(( occurs(E, _, TL), holds(F, _, TL), E \== F ), TL, Terms).
+test(a_checked_condition_term_outside_the_vocabulary_is_an_error,
+     error(existence_error(event, brake), context(outcome_probability/7, _))) :-
+    grasp_vocabulary(D),
+    timeline_vocabulary_create(D, V),
+    timeline_condition_terms(\+ occurs(brake, _, TL), TL, [Term]),
+    timeline_check_term(V, context(outcome_probability/7, grasping), Term).
+test(no_vocabulary_checks_nothing) :-
+    timeline_check_term(none, context(outcome_probability/7, grasping), event-brake).
+
 test(paper_spelling_upsidedown, T == interval(1.0, 2.0)) :-
     timeline_create(_{fluents: [[upside_down, [pancake1], 1.0, 2.0]], events: []}, TL),
     holds(upsidedown, T, TL),

@@ -6,7 +6,8 @@
 :- autoload(library(lists), [member/2, select/3, sum_list/2]).
 :- autoload(library(option), [option/2, option/3]).
 :- use_module(library(janus), [py_call/2]).
-:- use_module(projection, [make_projection/5, parameter_values/2]).
+:- use_module(projection, [make_projection/5, parameter_values/2,
+                            projection_check_condition/4]).
 :- meta_predicate outcome_probability(+, +, +, +, ?, 0, -).
 
 /** <module> How probable an outcome is, over what the robot does not know
@@ -50,12 +51,18 @@ F = 5, P = _{p: 0.93, low: 0.79, high: 0.98, n: 30} ;
 %
 %   @error domain_error(positive_integer, N) for samples(N) with N < 1
 %   @error domain_error(probability_threshold, T) for decide(T) outside (0, 1)
+%   @error existence_error(Kind, Term) for a fluent, event, quantity, type or
+%          object (Kind `entity`) that Condition names on TL and no timeline
+%          of Scenario can have (projection_check_condition/4), before
+%          anything is projected: `\+ occurs(brake, _, TL)` would be true in
+%          every world
 %   @error the errors of make_projection/5
 
 outcome_probability(Scenario, Program, Params, Options0, TL, Condition, P) :-
     must_be(list, Options0),
     must_be(list, Params),
     probability_options(Options0, N, Decide, Options),
+    projection_check_condition(Scenario, TL, Condition, outcome_probability/7),
     py_call('projection_server.projection':workers(), Workers),
     fixed_parametrization(Params, Fixed),
     sample(Scenario, Program, Fixed, Options, TL, Condition,

@@ -123,6 +123,7 @@ from projection_server.settings import TimelineSettings
 from projection_server.timeline.fluids import Fluids
 from projection_server.timeline.rules import Rules, sorted_events
 from projection_server.timeline.samples import Samples
+from projection_server.timeline.vocabulary import check, vocabulary
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -138,10 +139,13 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
     :class:`~projection_server.bags.Record` s (a worker's own projection: the same
     timeline as its bag's); ``bag`` is the bag's path, ``scenario`` the projection's
     checked scenario (its ``entities``, each with ``name``, ``cls``, ``pose`` and
-    ``properties``).
+    ``properties``). Its ``vocabulary`` is what any timeline of the scenario can name
+    (:func:`~projection_server.timeline.vocabulary.vocabulary`); every term of the timeline
+    is checked to be in it.
 
     Raises:
-        ProjectionError: kind ``bag_error`` if the records are not a projection's.
+        ProjectionError: kind ``bag_error`` if the records are not a projection's, or if
+            the timeline has a term its vocabulary does not declare.
     """
     samples = Samples()
     for record in records:
@@ -151,12 +155,13 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
     settings = TimelineSettings.recorded(settings_json['timeline'])
     rules = Rules(samples_, settings)
     fluids = Fluids(samples_, scenario)
-    return {
+    timeline = {
         'fluents': sorted(rules.fluents() + fluids.fluents(),
                           key=lambda r: (r[2], r[0], r[1])),
         'events': sorted_events(rules.events() + fluids.events()),
         'quantities': [[name, args, _plain(value)] for name, args, value
                        in rules.quantities() + fluids.quantities()],
+        'vocabulary': vocabulary(scenario),
         'meta': {
             'bag': os.fspath(bag), 'scenario': info.scenario_name, 'program': info.program,
             'params': json.loads(info.parameters_json), 'job_key': info.job_key,
@@ -165,6 +170,8 @@ def translate_records(records: Iterable[Record], bag: str | os.PathLike[str],
             'timeline_settings': dataclasses.asdict(settings),
         },
     }
+    check(timeline, timeline['vocabulary'])
+    return timeline
 
 
 def _plain(value: Any) -> Any:
