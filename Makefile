@@ -29,6 +29,7 @@ bench: setup
 	@tools/with_env.sh python bench/search_cost.py
 	@tools/with_env.sh python bench/robust_answer.py
 	@tools/with_env.sh python bench/robust_choice.py
+	@tools/with_env.sh python bench/robot_world.py
 
 reproduce: setup
 	@tools/with_env.sh projection_reproduce --out reports $(ARGS)
