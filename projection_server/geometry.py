@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-__all__ = ['rpy_of', 'quaternion_of', 'quaternion_product']
+__all__ = ['quaternion_of', 'quaternion_of_rpy', 'quaternion_product', 'rpy_of']
 
 
 def quaternion_of(m: np.ndarray) -> tuple[float, float, float, float]:
@@ -39,3 +39,13 @@ def rpy_of(q) -> tuple[float, float, float]:
     pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
     yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
     return (roll, pitch, yaw)
+
+
+def quaternion_of_rpy(roll: float, pitch: float, yaw: float
+                      ) -> tuple[float, float, float, float]:
+    """``(x, y, z, w)`` of fixed-axis roll, pitch, yaw: :func:`rpy_of`'s inverse."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)

@@ -6,10 +6,11 @@ domain_error; a known name that did not happen still fails."""
 from __future__ import annotations
 
 import os
-import signal
 
 from projection_interfaces.srv import PrologQuery
 import pytest
+
+from test.nodes import caller, own_server
 
 Q = PrologQuery.Request
 SIM_TIMEOUT = 300.0
@@ -26,34 +27,15 @@ def bag_dir(tmp_path_factory):
 @pytest.fixture(scope='module')
 def conditions_server(rclpy_context, tmp_path_factory, bag_dir):
     """A node of this module's own, so that its bag directory shows what was projected."""
-    from projection_server.client.launcher import node_command, NodeProcess
-
-    log = tmp_path_factory.mktemp('conditions_node') / 'node.log'
-    params = {'default_timeout': 5.0, 'max_engines': 4, 'bag_dir': str(bag_dir)}
-    with NodeProcess(node_command(NAME, params), log) as proc:
-        proc.wait_for_service(f'/{NAME}/query', timeout=60.0)
-        yield f'/{NAME}'
-    assert proc.returncode in (0, -signal.SIGINT), log.read_text()
+    with own_server(NAME, {'default_timeout': 5.0, 'max_engines': 4, 'bag_dir': str(bag_dir)},
+                    tmp_path_factory) as name:
+        yield name
 
 
 @pytest.fixture(scope='module')
 def call(conditions_server, node):
-    import rclpy
-
-    clients = {}
-
-    def _call(srv_type, service, request, timeout=30.0):
-        if service not in clients:
-            clients[service] = node.create_client(srv_type, f'{conditions_server}/{service}')
-            assert clients[service].wait_for_service(timeout_sec=20.0)
-        future = clients[service].call_async(request)
-        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-        assert future.done(), f'no answer from {service}'
-        return future.result()
-
-    yield _call
-    for c in clients.values():
-        node.destroy_client(c)
+    with caller(conditions_server, node) as c:
+        yield c
 
 
 def ask(call, text, mode=Q.ALL_SOLUTIONS):

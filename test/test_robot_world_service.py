@@ -21,6 +21,7 @@ import pytest
 from projection_server.bags.reader import read_bag
 from projection_server.simulation.monitor import WORLD_FRAME
 from projection_server.world.transforms import Transform, TransformBuffer
+from test.nodes import caller, own_server
 from test.world.robot_graph import BASE, JOINTS, PANDA_URDF, panda_description, RobotGraph
 
 Q = PrologQuery.Request
@@ -32,34 +33,23 @@ PLAN = 'plan([wait(0.05)])'
 
 @pytest.fixture(scope='module')
 def world_server(rclpy_context, tmp_path_factory):
-    from projection_server.client.launcher import node_command, NodeProcess
-    name = 'robot_world_server'
-    log = tmp_path_factory.mktemp('rw') / 'node.log'
     params = {'default_timeout': 30.0, 'max_engines': 4,
               'bag_dir': str(tmp_path_factory.mktemp('rw_bags'))}
-    command = node_command(name, params) + [
-        '-r', f'robot_description:={PREFIX}robot_description',
-        '-r', f'joint_states:={PREFIX}joint_states',
-        '-r', f'/tf:={PREFIX}tf', '-r', f'/tf_static:={PREFIX}tf_static']
-    with NodeProcess(command, log) as proc:
-        proc.wait_for_service(f'/{name}/query')
-        yield f'/{name}'
+    remaps = ['-r', f'robot_description:={PREFIX}robot_description',
+              '-r', f'joint_states:={PREFIX}joint_states',
+              '-r', f'/tf:={PREFIX}tf', '-r', f'/tf_static:={PREFIX}tf_static']
+    with own_server('robot_world_server', params, tmp_path_factory, remaps) as name:
+        yield name
 
 
 @pytest.fixture(scope='module')
 def ask(world_server, node):
-    import rclpy
-    client = node.create_client(PrologQuery, f'{world_server}/query')
-    assert client.wait_for_service(timeout_sec=20.0)
-
-    def _ask(text, timeout=60.0):
-        future = client.call_async(Q(mode=Q.ALL_SOLUTIONS, query=text, timeout=timeout,
-                                     max_solutions=10))
-        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout * 2)
-        assert future.done(), 'no answer'
-        return future.result()
-    yield _ask
-    node.destroy_client(client)
+    with caller(world_server, node) as call:
+        def _ask(text, timeout=60.0):
+            return call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=text,
+                                                 timeout=timeout, max_solutions=10),
+                        timeout=timeout * 2)
+        yield _ask
 
 
 @pytest.fixture(scope='module')

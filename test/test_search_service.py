@@ -6,11 +6,12 @@ projection workers, so that rounds of probes and batches of trials run on both."
 from __future__ import annotations
 
 import json
-import signal
 import time
 
 from projection_interfaces.srv import PrologQuery
 import pytest
+
+from test.nodes import caller, own_server
 
 Q = PrologQuery.Request
 SIM_TIMEOUT = 120.0
@@ -40,36 +41,17 @@ WORKERS = 2   # a batch of trials, or a round of probes, runs on both at once
 @pytest.fixture(scope='module')
 def search_server(rclpy_context, tmp_path_factory):
     """A node of this module's own with two projection workers."""
-    from projection_server.client.launcher import node_command, NodeProcess
-
-    log = tmp_path_factory.mktemp('search_node') / 'node.log'
     params = {'default_timeout': 5.0, 'max_engines': 4, 'projection_workers': WORKERS,
               'bag_dir': str(tmp_path_factory.mktemp('search_bags'))}
-    with NodeProcess(node_command(NAME, params), log) as proc:
-        proc.wait_for_service(f'/{NAME}/query', timeout=60.0)
-        yield f'/{NAME}'
-    assert proc.returncode in (0, -signal.SIGINT), log.read_text()
+    with own_server(NAME, params, tmp_path_factory) as name:
+        yield name
 
 
 @pytest.fixture(scope='module')
 def call(search_server, node):
     """call(srv_type, 'query', request) -> response, over this module's node."""
-    import rclpy
-
-    clients = {}
-
-    def _call(srv_type, service, request, timeout=30.0):
-        if service not in clients:
-            clients[service] = node.create_client(srv_type, f'{search_server}/{service}')
-            assert clients[service].wait_for_service(timeout_sec=20.0)
-        future = clients[service].call_async(request)
-        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-        assert future.done(), f'no answer from {service}'
-        return future.result()
-
-    yield _call
-    for c in clients.values():
-        node.destroy_client(c)
+    with caller(search_server, node) as c:
+        yield c
 
 
 @pytest.fixture(scope='module')

@@ -35,6 +35,7 @@ import numpy as np
 
 from projection_server import assets
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.geometry import quaternion_of_rpy, rpy_of
 from projection_server.standin.description import matrix_of, RobotTree
 
 if TYPE_CHECKING:
@@ -43,7 +44,7 @@ if TYPE_CHECKING:
     from projection_server.standin.plan_text import ParsedPlan
 
 __all__ = ['Observer', 'Outcome', 'StandinConfig', 'StandinError', 'StandinWorld',
-           'WorldState', 'event_text', 'quaternion_of_rpy', 'rpy_of_quaternion', 'world_json']
+           'WorldState', 'event_text', 'world_json']
 
 TABLE_TOP = 0.72   # m, the kitchen table's upper face
 # The kitchen of the knowledge base (prolog/kb/kitchen.ttl): floor and table.
@@ -214,7 +215,7 @@ class StandinWorld:
             'object': {'name': self.config.object_name, 'frame': self.config.object_frame,
                        'class': 'egg', 'broken': state.broken,
                        'pose': {'xyz': list(state.object_xyz),
-                                'rpy': list(rpy_of_quaternion(state.object_quaternion)),
+                                'rpy': list(rpy_of(state.object_quaternion)),
                                 'quaternion': list(state.object_quaternion)},
                        'properties': {**EGG, **self.truth}},
             'joints': {'names': list(state.joints), 'positions': list(state.joints.values())},
@@ -267,7 +268,7 @@ class StandinWorld:
              'pose': {'xyz': list(ROBOT_BASE), 'rpy': [0.0, 0.0, 0.0]}, 'properties': robot},
             {'name': self.config.object_name, 'class': 'egg', 'parts': [],
              'pose': {'xyz': list(state.object_xyz),
-                      'rpy': list(rpy_of_quaternion(state.object_quaternion))},
+                      'rpy': list(rpy_of(state.object_quaternion))},
              'properties': egg},
         ]}
 
@@ -346,25 +347,6 @@ def event_text(event: Sequence[Any]) -> str:
     if abs(end - start) < 1e-9:
         return f'{head}@{start:.2f}'
     return f'{head}@{start:.2f}-{end:.2f}'
-
-
-def quaternion_of_rpy(roll: float, pitch: float, yaw: float
-                      ) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of fixed-axis roll, pitch, yaw (URDF's and PyBullet's convention)."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
-
-
-def rpy_of_quaternion(q: Sequence[float]) -> tuple[float, float, float]:
-    """Fixed-axis roll, pitch, yaw of the quaternion (x, y, z, w)."""
-    x, y, z, w = q
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return (roll, pitch, yaw)
 
 
 def world_json(world: StandinWorld) -> str:

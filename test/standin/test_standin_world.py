@@ -11,8 +11,8 @@ import pytest
 from projection_server.errors import ProjectionError
 from projection_server.standin.description import matrix_of, RobotTree
 from projection_server.standin.plan_text import parse_plan, PlanTextError
-from projection_server.standin.world import (event_text, HOME, quaternion_of_rpy,
-                                             rpy_of_quaternion, StandinConfig, StandinWorld)
+from projection_server.geometry import quaternion_of_rpy, rpy_of
+from projection_server.standin.world import event_text, HOME, StandinConfig, StandinWorld
 
 
 @pytest.fixture(scope='module')
@@ -115,6 +115,6 @@ def test_events_read_as_name_args_at_their_times():
 
 def test_rpy_and_quaternions_round_trip():
     rpy = (0.1, -0.2, 0.3)
-    assert rpy_of_quaternion(quaternion_of_rpy(*rpy)) == pytest.approx(rpy)
+    assert rpy_of(quaternion_of_rpy(*rpy)) == pytest.approx(rpy)
     m = matrix_of((0, 0, 0), quaternion_of_rpy(0.0, 0.0, math.pi / 2))
     assert m[:3, 0] == pytest.approx([0.0, 1.0, 0.0])

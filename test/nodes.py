@@ -1,0 +1,47 @@
+"""Nodes of a test module's own: a projection_server in its own process (its bag directory,
+parameters and remappings the module's), and a caller of its services over DDS."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+from typing import Any, Callable, Iterator, Mapping, Sequence
+
+
+@contextlib.contextmanager
+def own_server(name: str, params: Mapping[str, object], tmp_path_factory: Any,
+               ros_args: Sequence[str] = ()) -> Iterator[str]:
+    """A projection_server node ``name`` with ``params`` (and ``ros_args`` such as
+    remappings); yields its fully qualified name once its query service answers, and checks
+    that it stopped cleanly."""
+    from projection_server.client.launcher import node_command, NodeProcess
+
+    log = tmp_path_factory.mktemp(f'{name}_node') / 'node.log'
+    with NodeProcess([*node_command(name, params), *ros_args], log) as proc:
+        proc.wait_for_service(f'/{name}/query', timeout=60.0)
+        yield f'/{name}'
+    assert proc.returncode in (0, -signal.SIGINT), log.read_text()
+
+
+@contextlib.contextmanager
+def caller(server: str, node: Any) -> Iterator[Callable[..., Any]]:
+    """``call(srv_type, 'query', request, timeout)`` -> response, from ``node`` to
+    ``server``'s services; its clients are destroyed on exit."""
+    import rclpy
+
+    clients: dict[str, Any] = {}
+
+    def call(srv_type, service, request, timeout=30.0):
+        if service not in clients:
+            clients[service] = node.create_client(srv_type, f'{server}/{service}')
+            assert clients[service].wait_for_service(timeout_sec=20.0)
+        future = clients[service].call_async(request)
+        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+        assert future.done(), f'no answer from {service}'
+        return future.result()
+
+    try:
+        yield call
+    finally:
+        for c in clients.values():
+            node.destroy_client(c)
