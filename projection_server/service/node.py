@@ -147,6 +147,9 @@ class ProjectionServerNode(Node):
         self._declare_string_array('asset_paths', ParameterDescriptor(
             description='Directories where model files resolve, after the package assets and '
                         'before pybullet_data (default: none)', read_only=True))
+        self.declare_parameter('physics_engine', 'pybullet', ParameterDescriptor(
+            description='The physics engine of a projection whose query chooses none',
+            read_only=True, additional_constraints='one of: pybullet, mujoco'))
         self.declare_parameter('robot_world', True, ParameterDescriptor(
             description='Read robot_description, joint_states, /tf and /tf_static for '
                         'robot_world/2', read_only=True))
@@ -165,7 +168,8 @@ class ProjectionServerNode(Node):
             workers=int(self.get_parameter('projection_workers').value),
             retention={'max_bags': int(self.get_parameter('max_bags').value)},
             backend=self.get_parameter('projection_backend').value,
-            ray_address=self.get_parameter('ray_address').value)
+            ray_address=self.get_parameter('ray_address').value,
+            engine=self.get_parameter('physics_engine').value)
         projection.start()
         prolog_bridge.load(options={name: self._string_array(name)
                                     for name in ('kb_files', 'asset_paths')})
