@@ -365,10 +365,13 @@ class MujocoGripper:
         n = len(self._fingers)
         opening = float(data.qpos[self._finger_qpos].sum())
         # What each finger is pushed with: its tendon's friction.
-        rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON)
-        ids, forces = data.efc_id[rows].tolist(), data.efc_force[rows].tolist()
-        mine = self._tendon_list
-        return opening, sum(abs(f) for i, f in zip(ids, forces) if i in mine) / n
+        # The friction rows follow the equality rows (MuJoCo's order of constraints).
+        first, last = data.ne, data.ne + data.nf
+        ids, forces = data.efc_id[first:last].tolist(), data.efc_force[first:last].tolist()
+        kinds = data.efc_type[first:last].tolist()
+        mine, tendon = self._tendon_list, mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON
+        return opening, sum(abs(f) for i, f, k in zip(ids, forces, kinds)
+                            if k == tendon and i in mine) / n
 
     def pad_faces(self) -> list[tuple[Pad, np.ndarray, np.ndarray, np.ndarray]]:
         faces = []

@@ -41,6 +41,7 @@ one does not bounce).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import Any, Callable, TYPE_CHECKING
 
@@ -101,6 +102,36 @@ class WorldSpec:
 
 def build_world(scenario: Scenario, settings: Settings, tool_control: bool = False
                 ) -> MujocoPhysics:
+    """A fresh world of ``scenario``: a copy of its compiled model (compiled once per
+    scenario and settings in a process: a query's parametrizations share it), its own
+    data, and what the builders bind to them."""
+    key = (repr(scenario), repr(settings.physics), tool_control)   # frozen dataclasses
+    compiled = _COMPILED.get(key)
+    if compiled is None:
+        compiled = _compile(scenario, settings, tool_control)
+        if len(_COMPILED) >= 16:
+            del _COMPILED[next(iter(_COMPILED))]
+        _COMPILED[key] = compiled
+    else:
+        _COMPILED[key] = _COMPILED.pop(key)   # the most recently used is kept longest
+    template, after = compiled
+    model = copy.copy(template)   # a projection changes its model (motors, a broken egg)
+    data = mujoco.MjData(model)
+    physics = MujocoPhysics(model, data, settings, scenario, tool_control)
+    for bind in after:
+        bind(physics)
+    physics.bind()
+    mujoco.mj_forward(model, data)
+    _lift_clear(physics)
+    return physics
+
+
+# (scenario, physics settings, tool control) -> (compiled model, the builders' binders)
+_COMPILED: dict[tuple[str, str, bool], tuple[Any, list[Callable[[MujocoPhysics], None]]]] = {}
+
+
+def _compile(scenario: Scenario, settings: Settings, tool_control: bool
+             ) -> tuple[Any, list[Callable[[MujocoPhysics], None]]]:
     from projection_server.simulation.engines.mujoco.builders import object_builder
 
     s = settings.physics
@@ -123,16 +154,7 @@ def build_world(scenario: Scenario, settings: Settings, tool_control: bool = Fal
     if world.gravity is not None:
         option.gravity = [0.0, 0.0, -world.gravity]
     _pairs(world)
-    model = spec.compile()
-    data = mujoco.MjData(model)
-    physics = MujocoPhysics(model, data, settings, scenario, tool_control)
-    physics.spec = spec
-    for after in world.after:
-        after(physics)
-    physics.bind()
-    mujoco.mj_forward(model, data)
-    _lift_clear(physics)
-    return physics
+    return spec.compile(), world.after
 
 
 def _pairs(world: WorldSpec) -> None:
