@@ -94,3 +94,28 @@ def test_a_program_or_a_shape_an_engine_cannot_run_is_refused(make_scenario):
     with pytest.raises(ProjectionError) as info:
         engines.get('ode')
     assert 'pybullet' in str(info.value) and 'mujoco' in str(info.value)
+
+
+def test_a_mujoco_projection_made_twice_logs_the_same_bag(make_scenario, tmp_path):
+    # The second world is a copy of the first one's compiled model, with a fresh state.
+    from rosbags.highlevel import AnyReader
+
+    from projection_server.bags import typestore
+    from projection_server.simulation import Job
+    from projection_server.simulation.runner import Simulator
+
+    def messages(path):
+        with AnyReader([path], default_typestore=typestore()) as reader:
+            return [(c.topic, t, raw) for c, t, raw in reader.messages()
+                    if c.topic != '/projection/info']
+
+    job = Job.checked(make_scenario(), 'grasp_object', {'force': 11.0, 'position': 0.02},
+                      {'engine': 'mujoco'})
+    simulator = Simulator()
+    try:
+        first = simulator.run(job, load_settings(), tmp_path / 'first')
+        second = simulator.run(job, load_settings(), tmp_path / 'second')
+    finally:
+        simulator.close()
+    assert first.physics.models[0].broken and second.physics.models[0].broken
+    assert messages(tmp_path / 'first') == messages(tmp_path / 'second')

@@ -230,14 +230,19 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
     base = world.spec.worldbody.add_frame().attach_body(child.worldbody.first_body(),
                                                         prefix, '')
     base.name, base.mocap, base.pos = entity.name, True, [x, y, z + PARK_HEIGHT]
-    friction = float(gripper.properties['friction']) if gripper is not None else 1.0
+    # Without a gripper entity, each link's friction is its URDF's, as Bullet reads it
+    # (``<contact><lateral_friction>``; Bullet's default 0.5 where none is given).
+    frictions = _urdf_frictions(urdf)
     limits = {'max_force': math.inf, 'max_opening': math.inf}
     if gripper is not None:
         limits = {key: gripper.properties[key] for key in limits}
     joints = spec_data['joints']
     links: list[str] = []
     for body in _subtree(base):
-        links.append(body.name[len(prefix):])
+        link = body.name[len(prefix):]
+        links.append(link)
+        friction = (float(gripper.properties['friction']) if gripper is not None
+                    else frictions.get(link, BULLET_FRICTION))
         for geom in body.geoms:
             world.adopt(geom, entity.name, 'robot', friction)
     for finger in joints['fingers']:
@@ -301,6 +306,21 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
             float(spec_data['gantry_force']), tracking_rate=TRACKING_RATE,
             mocap=int(model.body_mocapid[root]), **limits)
     world.after.append(after)
+
+
+BULLET_FRICTION = 0.5   # Bullet's lateral friction of a link whose URDF gives none
+
+
+def _urdf_frictions(path: Path) -> dict[str, float]:
+    """Link name -> the ``<contact><lateral_friction value>`` its URDF gives."""
+    import xml.etree.ElementTree as ET
+
+    out = {}
+    for link in ET.parse(path).getroot().iter('link'):
+        element = link.find('contact/lateral_friction')
+        if element is not None:
+            out[link.get('name')] = float(element.get('value'))
+    return out
 
 
 def _subtree(body: Any) -> list[Any]:
