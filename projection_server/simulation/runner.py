@@ -35,16 +35,16 @@ __all__ = ['Projection', 'Simulator', 'projection_info']
 
 
 class Simulator:
-    """Warm engine sessions (:mod:`~projection_server.simulation.engines`) that run
-    projections one after the other: PyBullet's opened at once, another engine's when a
-    projection first asks for it."""
+    """Warm engine sessions (:mod:`~projection_server.simulation.engines`), one of each
+    engine, that run projections one after the other."""
 
     def __init__(self) -> None:
         from projection_server.bags import typestore
 
         typestore()   # message types are registered once per process
         self._sessions: dict[str, Any] = {}
-        self.session(ENGINES[0])
+        for engine in ENGINES:   # opened (imported) before the first projection asks
+            self.session(engine)
 
     @property
     def client(self) -> Any:
