@@ -40,6 +40,9 @@ DRIVE_ARMATURE = 1.0e3
 # to 600 N, past any grip force, so the friction loss (the grip force), not the softness,
 # decides how hard it pushes.
 DRIVE_SOLREF = (0.02, 1.0)
+# A plan's free gripper is welded to its moving target this hard: it sags 0.15 mm under
+# its own weight (a weld's softness, as a contact's, is relative to what it holds).
+HOLD_SOLIMP = (0.99, 0.99, 0.001, 0.5, 2.0)
 DRIVE_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 
 
@@ -211,9 +214,11 @@ def robot(world: WorldSpec, entity: Entity) -> None:
 
 
 def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None:
-    """The PR2 gripper on its gantry: the URDF of its PyBullet model compiled by MuJoCo's
-    URDF importer and attached below a mocap body (the gantry's base, placed by the
-    program), a velocity servo on each joint (:class:`~.physics.MujocoGripper`)."""
+    """The PR2 gripper on its gantry, or free for plans (``tool_control``): the URDF of its
+    PyBullet model compiled by MuJoCo's URDF importer, its root the gantry's base (a
+    mocap body the program places) or free and welded to a mocap body that the plan's tool
+    pose moves (:class:`~.physics.MujocoFloatingTool`); the joints set their speeds
+    (:class:`~.physics.MujocoGripper`)."""
     from projection_server.simulation.engines.mujoco.physics import MujocoGripper
     from projection_server.simulation.robots.gantry import (_gripper_spec, _pad, _urdf_boxes,
                                                             DEFAULT_GRIPPER, TRACKING_RATE)
@@ -222,14 +227,32 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
     asset = (Path(gripper.properties['urdf']).stem if gripper is not None
              else entity.properties.get('gripper', DEFAULT_GRIPPER))
     spec_data = _gripper_spec(asset)
-    urdf = assets_dir() / spec_data['urdf']
+    free = world.tool_control
+    urdf = assets_dir() / spec_data['free_urdf' if free else 'urdf']
     child = mujoco.MjSpec.from_file(str(urdf))
+    root_link = child.worldbody.first_body().name
     x, y, z = entity.pose.xyz
     prefix = f'{entity.name}/'
-    # The URDF's root link is the gantry's base: a mocap body, which the program places.
     base = world.spec.worldbody.add_frame().attach_body(child.worldbody.first_body(),
                                                         prefix, '')
-    base.name, base.mocap, base.pos = entity.name, True, [x, y, z + PARK_HEIGHT]
+    base.name, base.pos = entity.name, [x, y, z + PARK_HEIGHT]
+    if free:
+        # For plans: the palm free, welded to a mocap body (the plan's tool pose moves it).
+        base.add_freejoint()
+        parked = _parked_orientation()
+        base.quat = _quat(parked)
+        target = world.spec.worldbody.add_body(name=prefix + 'target', mocap=True,
+                                               pos=[x, y, z + PARK_HEIGHT],
+                                               quat=_quat(parked))
+        world.spec.add_equality(type=mujoco.mjtEq.mjEQ_WELD, name=prefix + 'hold',
+                                objtype=mujoco.mjtObj.mjOBJ_BODY, name1=target.name,
+                                name2=entity.name, solref=[1.0 / TRACKING_RATE, 1.0],
+                                solimp=list(HOLD_SOLIMP),
+                                # anchor, the palm's pose in the target's (none), torques
+                                data=[0.0] * 6 + [1.0, 0.0, 0.0, 0.0, 1.0] + [0.0])
+    else:
+        # The URDF's root link is the gantry's base: a mocap body the program places.
+        base.mocap = True
     # Without a gripper entity, each link's friction is its URDF's, as Bullet reads it
     # (``<contact><lateral_friction>``; Bullet's default 0.5 where none is given).
     frictions = _urdf_frictions(urdf)
@@ -238,6 +261,9 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
         limits = {key: gripper.properties[key] for key in limits}
     joints = spec_data['joints']
     links: list[str] = []
+    for geom in base.geoms:   # a free gripper's palm
+        world.adopt(geom, entity.name, 'robot', float(gripper.properties['friction'])
+                    if gripper is not None else frictions.get(root_link, BULLET_FRICTION))
     for body in _subtree(base):
         link = body.name[len(prefix):]
         links.append(link)
@@ -272,8 +298,9 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
     # The gantry's joints are set their speeds each step too, of the same inertia: a stiff
     # servo would have to be integrated implicitly, and MuJoCo solves the contacts with
     # the plain inertia, so what the pads hold would be pushed ahead of them as they move.
-    names = [joints['lift'], joints['approach'], *(f + '/drive' for f in joints['fingers'])]
-    for joint in names[:2]:
+    gantry = [] if free else [joints['lift'], joints['approach']]
+    names = [*gantry, *(f + '/drive' for f in joints['fingers'])]
+    for joint in gantry:
         world.spec.joint(prefix + joint).armature = DRIVE_ARMATURE
     boxes = _urdf_boxes(urdf)
 
@@ -282,14 +309,18 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
         root = model.body(entity.name).id
         link_ids = {model.body(prefix + link).id: link for link in links}
         index = {link: i for i, link in link_ids.items()}
+        index[root_link] = -1
+        # The root's frame on /tf is its centre of mass (PyBullet's base frame).
+        com = model.body_ipos[root].copy()
         pads = [_pad(index[pad['link']], pad, boxes[pad['collision']],
                      float(spec_data['pad_stiffness']), float(spec_data['pad_rim_radius']))
                 for pad in spec_data['pads']]
         link_shapes: dict[int, list[tuple[Shape, tuple[float, float, float]]]] = {}
         for box in boxes.values():
-            link_shapes.setdefault(index[box['link']], []).append(
-                (Shape('box', box['size'], (0.3, 0.3, 0.35, 1.0)),
-                 tuple(map(float, box['origin']))))
+            link = index[box['link']]
+            origin = np.asarray(box['origin']) - (com if link < 0 else 0.0)
+            link_shapes.setdefault(link, []).append(
+                (Shape('box', box['size'], (0.3, 0.3, 0.35, 1.0)), tuple(map(float, origin))))
         physics.add_body(Body(entity.name, entity.cls, root, False, None,
                               links=dict(sorted(link_ids.items())), link_shapes=link_shapes,
                               driven=True, urdf=str(urdf)))
@@ -298,14 +329,50 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
         joint_map = {'fingers': [model.joint(prefix + n).id for n in joints['fingers']],
                      'drives': [joint_ids[n + '/drive'] for n in joints['fingers']],
                      'tendons': [model.tendon(prefix + n + '/drive').id
-                                 for n in joints['fingers']],
-                     'lift': joint_ids[joints['lift']],
-                     'approach': joint_ids[joints['approach']]}
-        physics.grippers[entity.name] = MujocoGripper(
-            physics, entity.name, root, joint_map, actuators, pads,
-            float(spec_data['gantry_force']), tracking_rate=TRACKING_RATE,
-            mocap=int(model.body_mocapid[root]), **limits)
+                                 for n in joints['fingers']]}
+        if not free:
+            joint_map.update(lift=joint_ids[joints['lift']],
+                             approach=joint_ids[joints['approach']])
+        hand = MujocoGripper(physics, entity.name, root, joint_map, actuators, pads,
+                             float(spec_data['gantry_force']), tracking_rate=TRACKING_RATE,
+                             mocap=int(model.body_mocapid[root]), **limits)
+        physics.grippers[entity.name] = hand
+        if free:
+            _park(physics, entity, hand, model, prefix, spec_data, limits)
     world.after.append(after)
+
+
+def _parked_orientation() -> tuple[float, float, float, float]:
+    """The palm turned so that the tool (its fingers, the palm's -x) points along +x, as
+    the PyBullet model parks it (robots/gantry.py)."""
+    from projection_server.simulation.engines.mujoco.physics import MujocoPhysics as P
+
+    tool = ((0.0, 0.0, 0.0), P.quaternion_from_euler((0.0, -math.pi / 2, 0.0)))
+    return P.multiply_transforms((0.0, 0.0, 0.0), P.quaternion_from_euler(
+        (0.0, math.pi / 2, 0.0)), *P.invert_transform(*tool))[1]
+
+
+def _park(physics: MujocoPhysics, entity: Entity, hand: Any, model: Any, prefix: str,
+          spec_data: dict[str, Any], limits: dict[str, float]) -> None:
+    """The free gripper as a manipulator, parked above the robot's pose, open."""
+    from projection_server.simulation.engines.mujoco.physics import (MujocoFloatingTool,
+                                                                   MujocoPhysics as P)
+    from projection_server.simulation.robots.gantry import OPEN_WIDTH
+
+    tool = ((0.0, 0.0, 0.0), P.quaternion_from_euler((0.0, -math.pi / 2, 0.0)))
+    if math.isinf(hand.max_opening):   # no gripper entity: the fingers' own travel
+        hand.max_opening = float(sum(model.jnt_range[j][1] for j in hand.fingers))
+    opening = min(hand.max_opening, OPEN_WIDTH)
+    data = physics.data
+    mujoco.mj_kinematics(model, data)   # the parked pose, which the tool starts from
+    for joint in (*hand.fingers, *hand._drives):
+        data.qpos[model.jnt_qposadr[joint]] = opening / 2
+    hand.open(opening, speed=0.1)
+    reach = tuple(tuple(r) for r in spec_data['free_reach'])
+    root = model.body(entity.name).id
+    physics.manipulators[entity.name] = MujocoFloatingTool(
+        physics, entity.name, root, hand, tool, entity.pose.xyz, reach,
+        int(model.body_mocapid[model.body(prefix + 'target').id]))
 
 
 BULLET_FRICTION = 0.5   # Bullet's lateral friction of a link whose URDF gives none

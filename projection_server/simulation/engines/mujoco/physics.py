@@ -99,9 +99,10 @@ class MujocoPhysics(Physics):
 
     # --- poses ----------------------------------------------------------------------------
     def base_pose(self, body_id: int) -> tuple[Vec3, Quat]:
+        """A body's base frame as PyBullet's: at its centre of mass, turned as its link."""
         d = self.data
         w, x, y, z = d.xquat[body_id].tolist()
-        return tuple(d.xpos[body_id].tolist()), (x, y, z, w)
+        return tuple(d.xipos[body_id].tolist()), (x, y, z, w)
 
     def pose(self, name: str) -> tuple[Vec3, Quat]:
         return self.base_pose(self.body(name).body_id)
@@ -376,7 +377,7 @@ class MujocoGripper:
     def pad_faces(self) -> list[tuple[Pad, np.ndarray, np.ndarray, np.ndarray]]:
         faces = []
         for pad in self.pads:
-            origin, quaternion = self._physics.base_pose(pad.link)
+            ((origin, quaternion),) = self._physics.link_poses(self.body_id, [pad.link])
             rot = self._physics.rotation_matrix(quaternion)
             faces.append((pad, np.asarray(origin) + rot @ pad.centre,
                           (rot @ np.asarray(pad.axes).T).T, rot @ pad.normal))
@@ -396,3 +397,55 @@ def _rotate(q: Quat, v: Vec3) -> Vec3:
     cx, cy, cz = y * v[2] - z * v[1], z * v[0] - x * v[2], x * v[1] - y * v[0]
     dx, dy, dz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
     return (v[0] + 2 * (w * cx + dx), v[1] + 2 * (w * cy + dy), v[2] + 2 * (w * cz + dz))
+
+
+class MujocoFloatingTool:
+    """:class:`~projection_server.simulation.robots.manipulator.FloatingTool` on MuJoCo: the
+    free gripper is welded to a mocap body that the plan's tool pose moves, softly (a
+    weld's reference time constant of 1 / the tracking rate), so that the tool follows as
+    PyBullet's moving constraint has it follow, and what it pushes pushes back."""
+
+    every_step = True
+
+    def __init__(self, physics: MujocoPhysics, name: str, body_id: int, gripper: Any,
+                 tool: tuple[Any, Any], home: Any, reach: tuple[tuple[float, float], ...],
+                 mocap: int):
+        self.name = name
+        self.body_id = body_id
+        self.gripper = gripper
+        self._physics = physics
+        self._home = np.asarray(home, float)
+        self._reach = reach
+        self._tool = (tuple(tool[0]), tuple(tool[1]))
+        self._link_in_tool = MujocoPhysics.invert_transform(*self._tool)
+        self._mocap = mocap
+        self._target: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+        self.servo(*self.tool_pose())
+
+    def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        d = self._physics.data
+        w, x, y, z = d.xquat[self.body_id].tolist()
+        link = (tuple(d.xpos[self.body_id].tolist()), (x, y, z, w))
+        position, orientation = MujocoPhysics.multiply_transforms(*link, *self._tool)
+        return np.asarray(position), np.asarray(orientation)
+
+    def check_reach(self, position: Any, orientation: Any, what: str) -> None:
+        from projection_server.simulation.robots.manipulator import _unreachable
+
+        offset = np.asarray(position, float) - self._home
+        low = np.array([-self._reach[0][1], -self._reach[1][1], self._reach[2][0]])
+        high = np.array([self._reach[0][1], self._reach[1][1], self._reach[2][1]])
+        outside = float(np.maximum(low - offset, offset - high).max())
+        if outside > 0:
+            raise _unreachable(self.name, what, position, outside, 0.0)
+
+    def servo(self, position: Any, orientation: Any) -> None:
+        target = (tuple(map(float, position)), tuple(map(float, orientation)))
+        if target == self._target:
+            return
+        self._target = target
+        link = MujocoPhysics.multiply_transforms(*target, *self._link_in_tool)
+        d = self._physics.data
+        d.mocap_pos[self._mocap] = link[0]
+        x, y, z, w = link[1]
+        d.mocap_quat[self._mocap] = (w, x, y, z)
