@@ -119,3 +119,25 @@ def test_a_mujoco_projection_made_twice_logs_the_same_bag(make_scenario, tmp_pat
         simulator.close()
     assert first.physics.models[0].broken and second.physics.models[0].broken
     assert messages(tmp_path / 'first') == messages(tmp_path / 'second')
+
+
+@pytest.mark.parametrize('shape, size, rest', [
+    ('box', {'size_x': 0.04, 'size_y': 0.06, 'size_z': 0.08}, 0.04),
+    ('cylinder', {'radius': 0.03, 'height': 0.1}, 0.05),
+    ('sphere', {'radius': 0.025}, 0.025),
+])
+def test_each_primitive_comes_to_rest_on_the_table_at_its_own_height(make_scenario, shape,
+                                                                      size, rest):
+    scenario = make_scenario()
+    scenario['entities'] = [scenario['entities'][0], {
+        'name': 'thing', 'class': 'rigid_object',
+        'pose': {'xyz': [0.1, 0.0, 0.72 + rest + 0.02], 'rpy': [0.0, 0.0, 0.0]},
+        'properties': {'shape': shape, 'mass': 0.3, **size}}]
+    physics = mujoco_world(scenario)
+    for _ in range(240):
+        physics.step()
+    position, _ = physics.pose('thing')
+    assert position[2] == pytest.approx(0.72 + rest, abs=1e-3)
+    assert math.hypot(*physics.base_velocity(physics.bodies['thing'].body_id)[0]) < 1e-3
+    (total,) = [c.normal_force for c in physics.contacts()]
+    assert total == pytest.approx(0.3 * 9.81, rel=0.02)
