@@ -208,3 +208,23 @@ def test_a_urdf_arm_on_mujoco_is_an_error_naming_the_robot_and_the_engine(call):
                mode=Q.ONCE)
     assert not r.ok and r.error_kind == 'projection_error', (r.error_kind, r.message)
     assert 'panda_robot' in r.message and 'mujoco' in r.message, r.message
+
+
+@pytest.mark.parametrize('breaking_force', [3.0, 5.0])
+def test_an_egg_that_breaks_as_it_is_dropped_is_broken_after_the_drop_on_mujoco(
+        call, breaking_force):
+    # Section II's query (test_experiments_service) on MuJoCo: the same fluents after the
+    # drop, the remains falling on to the table.
+    r, sols = ask(call, f'''
+        create_scenario(S),
+        add_to_scenario(S, [kitchen_env, pr2_robot, egg1]),
+        scenario_set_property(S, egg1, mass, 0.1),
+        scenario_set_property(S, egg1, breaking_force, {breaking_force}),
+        make_projection(S, grasp_object, [(_, force, [2.3])], [physics(_{{engine: mujoco}})],
+                        TL),
+        with_timeline(TL, ( occurs(Evt, T1), typeOf(Evt, dropping), objOf(Evt, egg1),
+                            after(T2, T1), holds(F, T2), objOf(F, egg1) ))''')
+    assert r.ok, r.message
+    fluents = {json.dumps(s['F'], sort_keys=True) for s in sols}
+    for name, args in (('broken', ['egg1']), ('on', ['egg1', 'table1'])):
+        assert json.dumps({'functor': name, 'args': args}, sort_keys=True) in fluents
