@@ -30,6 +30,7 @@ bench: setup
 	@tools/with_env.sh python bench/robust_answer.py
 	@tools/with_env.sh python bench/robust_choice.py
 	@tools/with_env.sh python bench/robot_world.py
+	@tools/with_env.sh python bench/engines.py
 
 reproduce: setup
 	@tools/with_env.sh projection_reproduce --out reports $(ARGS)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import atexit
 from collections import OrderedDict
+import dataclasses
 import itertools
 import logging
 import os
@@ -32,6 +33,7 @@ from projection_server.simulation import programs as _programs
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import Job
 from projection_server.simulation.scenario import parse_scenario
+from projection_server.settings import ENGINES, load_settings
 from projection_server.workers import create_backend, Retention
 
 if TYPE_CHECKING:
@@ -70,7 +72,7 @@ _log = logging.getLogger('projection_server.projection')
 _lock = threading.Lock()
 _backend: WorkerBackend | None = None
 _config: dict[str, Any] = {'bag_dir': None, 'workers': 1, 'retention': None,
-                           'backend': 'local', 'ray_address': None}
+                           'backend': 'local', 'ray_address': None, 'engine': None}
 # Timelines of finished projections not yet handed to Prolog, by bag path (bounded: a
 # query that never asks for its timelines must not grow the process).
 _timelines: OrderedDict[str, dict[str, Any]] = OrderedDict()
@@ -92,10 +94,13 @@ def default_bag_dir() -> Path:
 
 def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None = None,
               retention: Retention | Mapping[str, Any] | None = None,
-              backend: str | None = None, ray_address: str | None = None) -> None:
+              backend: str | None = None, ray_address: str | None = None,
+              engine: str | None = None) -> None:
     """Set where bags go, how many workers run projections, how many bags are kept and
     which worker backend runs them (``local`` or ``ray``; ``ray_address`` is the Ray
-    cluster to join, ``''`` for a local Ray instance, see :func:`workers.ray.connect`).
+    cluster to join, ``''`` for a local Ray instance, see :func:`workers.ray.connect`);
+    ``engine`` is the physics engine of a query that chooses none (one of
+    :data:`~projection_server.settings.ENGINES`; default: the settings file's).
 
     Arguments left as None keep their current value. ``retention`` is a
     :class:`~projection_server.workers.Retention` or a dict with ``max_bags`` and
@@ -107,8 +112,11 @@ def configure(bag_dir: str | os.PathLike[str] | None = None, workers: int | None
     with _lock:
         if workers is not None and (not isinstance(workers, int) or workers < 1):
             raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'workers must be >= 1, got {workers!r}')
+        if engine is not None and engine not in ENGINES:
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS,
+                                  f'engine must be one of {", ".join(ENGINES)}, got {engine!r}')
         updates = {'bag_dir': bag_dir, 'workers': workers, 'backend': backend,
-                   'ray_address': ray_address,
+                   'ray_address': ray_address, 'engine': engine,
                    'retention': Retention.of(retention) if retention is not None else None}
         _config.update({k: v for k, v in updates.items() if v is not None})
         old, _backend = _backend, None
@@ -236,10 +244,12 @@ def prefetch(scenario: dict[str, Any], program: str, params_list: list[dict[str,
     reports their errors when (and if) they are asked for.
     """
     jobs = []
+    settings = _get_backend().settings
     for params, world in zip(params_list, worlds or [None] * len(params_list)):
         try:
-            jobs.append(Job.checked(_world(scenario, world)[0], program, params, physics,
-                                    plan))
+            job = Job.checked(_world(scenario, world)[0], program, params, physics, plan)
+            job.check_engine(settings)
+            jobs.append(job)
         except ProjectionError:
             pass
     if jobs:
@@ -423,6 +433,10 @@ def _get_backend() -> WorkerBackend:
     with _lock:
         if _backend is None:
             options = {'retention': _config['retention']}
+            if _config['engine'] is not None:
+                settings = load_settings()
+                options['settings'] = dataclasses.replace(settings, physics=dataclasses.replace(
+                    settings.physics, engine=_config['engine']))
             if _config['backend'] == 'ray' and _config['ray_address'] is not None:
                 options['address'] = _config['ray_address']
             _backend = create_backend(_config['backend'],

@@ -15,7 +15,7 @@ program's, then the query's. A finer time step keeps the control and logging rat
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, MISSING, replace
 import functools
 import math
 import os
@@ -32,6 +32,7 @@ __all__ = [
     'PhysicsSettings',
     'Settings',
     'TimelineSettings',
+    'ENGINES',
     'check_physics',
     'config_path',
     'describe_physics',
@@ -39,11 +40,15 @@ __all__ = [
 ]
 
 CONFIG_NAME = 'physics.yaml'
+# The physics engines a projection may run on (``physics(_{engine: E})``); the first is the
+# default of the settings file. A bag made before engines could be chosen is PyBullet's.
+ENGINES = ('pybullet', 'mujoco')
 
 
 @dataclass(frozen=True)
 class PhysicsSettings:
-    """Settings of the PyBullet engine."""
+    """Settings of the physics engine (``engine``: one of :data:`ENGINES`; the others are
+    PyBullet's names, MuJoCo reads what it has of them: rate, gravity, iterations)."""
 
     rate_hz: int
     gravity: tuple[float, float, float]
@@ -55,6 +60,7 @@ class PhysicsSettings:
     solver_residual_threshold: float
     deterministic_overlapping_pairs: int
     ellipsoid_segments: tuple[int, int]
+    engine: str = ENGINES[0]
 
     @property
     def time_step(self) -> float:
@@ -108,13 +114,19 @@ class PhysicsOption:
     max: float
     integer: bool
     doc: str
+    values: tuple[str, ...] = ()   # a setting that names one of these, not a number
 
     def describe(self, default: Any) -> dict[str, Any]:
+        if self.values:
+            return {'name': self.name, 'unit': self.unit, 'values': list(self.values),
+                    'default': default, 'doc': self.doc}
         return {'name': self.name, 'unit': self.unit, 'min': self.min, 'max': self.max,
                 'integer': self.integer, 'default': default, 'doc': self.doc}
 
 
 PHYSICS_OPTIONS: dict[str, PhysicsOption] = {o.name: o for o in (
+    PhysicsOption('engine', '', 0, 0, False,
+                  'the physics engine that runs the projection', values=ENGINES),
     PhysicsOption('rate_hz', 'Hz', 60, 4800, True,
                   'physics steps per simulated second; a multiple of the control and '
                   'logging rates, which stay as they are'),
@@ -148,6 +160,9 @@ class Settings:
         data = _jsonable(asdict(self))
         if not data['programs']:
             del data['programs']
+        # PyBullet's projections keep the keys and bags they had before there was a choice.
+        if data['physics']['engine'] == ENGINES[0]:
+            del data['physics']['engine']
         return data
 
     @classmethod
@@ -230,6 +245,13 @@ def check_physics(overrides: Any, control_hz: int = 1,
             raise ProjectionError(
                 ErrorKind.INVALID_SETTINGS, f'{where}: unknown physics setting {name!r}; '
                 f'accepted: {", ".join(PHYSICS_OPTIONS)}')
+        if option.values:
+            if value not in option.values:
+                raise ProjectionError(
+                    ErrorKind.INVALID_SETTINGS, f'{where}: {name} must be one of '
+                    f'{", ".join(option.values)}, got {value!r}')
+            checked[str(name)] = str(value)
+            continue
         kind = int if option.integer else (int, float)
         if isinstance(value, bool) or not isinstance(value, kind):
             what = 'an integer' if option.integer else 'a number'
@@ -283,12 +305,19 @@ def _section(name: str, cls: type, data: Any) -> Any:
     if not isinstance(data, dict):
         raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{name}: expected a mapping')
     types = {f.name: f.type for f in fields(cls)}
-    _check_keys(name, data, types)
+    optional = {f.name for f in fields(cls) if f.default is not MISSING}
+    _check_keys(name, {**{k: None for k in optional}, **data}, types)
     values = {}
     for key, typ in types.items():
+        if key not in data:
+            continue
         value = data[key]
         try:
-            if typ.startswith('tuple'):
+            if typ == 'str':
+                if key == 'engine' and value not in ENGINES:
+                    raise ValueError(f'one of {", ".join(ENGINES)}, got {value!r}')
+                values[key] = str(value)
+            elif typ.startswith('tuple'):
                 item = float if 'float' in typ else int
                 values[key] = tuple(item(v) for v in value)
             else:

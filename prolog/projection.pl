@@ -99,7 +99,8 @@ on that projection's timeline:
 %       physics(D) raises the program's rate_hz and solver_iterations);
 %     - physics(+Dict): engine settings of these projections instead of the
 %       program's (projection_physics_setting/3), e.g.
-%       `_{rate_hz: 960, solver_iterations: 400}`;
+%       `_{rate_hz: 960, solver_iterations: 400}`, or `_{engine: mujoco}`
+%       (the engines: `pybullet`, the default, and `mujoco`);
 %     - samples(+N): project each parametrization in N worlds drawn from the
 %       scenario's beliefs (properties given as distributions, see
 %       scenario_set_property/4), the worlds enumerated for each
@@ -128,7 +129,8 @@ on that projection's timeline:
 %   @error domain_error(parameter_range, range(Low, High, Step)) for a range
 %          without values (High < Low)
 %   @error domain_error(physics_setting(Name, Range), Value) for a physics
-%          setting out of Range (`between(Min, Max)` or `multiple_of(N)`)
+%          setting out of Range (`between(Min, Max)`, `multiple_of(N)`, or
+%          `oneof(Engines)` for an unknown engine)
 %   @error domain_error(plan_step, Step), domain_error(plan_length(1, Max), N)
 %          for a malformed plan (plan_template/3)
 %   @error domain_error(plan_value, Values) for a plan whose grounded values
@@ -414,6 +416,18 @@ check_physics_setting(Program, Name-Value) :-
     ->  true
     ;   existence_error(physics_setting, Name)
     ),
+    (   get_dict(values, Setting, Names)    % a choice of names: the engine
+    ->  maplist(string_atom, Names, Atoms),
+        (   atom(Value), memberchk(Value, Atoms)
+        ->  true
+        ;   domain_error(physics_setting(Name, oneof(Atoms)), Value)
+        )
+    ;   check_physics_number(Name, Value, Setting)
+    ).
+
+string_atom(String, Atom) :- atom_string(Atom, String).
+
+check_physics_number(Name, Value, Setting) :-
     (   get_dict(integer, Setting, @(true))
     ->  must_be(integer, Value)
     ;   must_be(number, Value)

@@ -137,7 +137,8 @@ class ProjectionServerNode(Node):
             workers=int(self.get_parameter('projection_workers').value),
             retention={'max_bags': int(self.get_parameter('max_bags').value)},
             backend=self.get_parameter('projection_backend').value,
-            ray_address=self.get_parameter('ray_address').value)
+            ray_address=self.get_parameter('ray_address').value,
+            engine=self.get_parameter('physics_engine').value)
         projection.start()
         prolog_bridge.load(options={name: self._string_array(name)
                                     for name in ('kb_files', 'asset_paths')})

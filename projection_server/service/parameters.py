@@ -57,6 +57,9 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec('asset_paths', [],
                   'Directories where model files resolve, after the package assets and '
                   'before pybullet_data (default: none)', read_only=True),
+    ParameterSpec('physics_engine', 'pybullet',
+                  'The physics engine of a projection whose query chooses none',
+                  read_only=True, constraints='one of: pybullet, mujoco'),
     ParameterSpec('robot_world', True,
                   'Read robot_description, joint_states, /tf and /tf_static for robot_world/2',
                   read_only=True),

@@ -44,24 +44,24 @@ __all__ = ['Report', 'run_tree', 'start_tree']
 Report = Callable[[int, Any, bool], None]
 
 
-def run_tree(client: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
+def run_tree(simulator: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
              report: Report) -> bool:
     """Run the projections ``leaves`` (a job and the path of its new bag each; all of one
     program, scenario, physics and set-up parameters) as a tree of processes below the
-    calling one, in ``client``'s PyBullet world, and ``report`` each.
+    calling one, in a world of ``simulator``'s, and ``report`` each.
 
     Returns whether every process of the tree ended normally; if not (one crashed), the
     leaves it had not reported yet are not reported.
     """
-    return os.waitpid(start_tree(client, leaves, settings, report), 0)[1] == 0
+    return os.waitpid(start_tree(simulator, leaves, settings, report), 0)[1] == 0
 
 
-def start_tree(client: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
+def start_tree(simulator: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
                report: Report) -> int:
     """:func:`run_tree` without waiting: the pid of the tree's root, which leads a process
     group of the whole tree (to be paused and continued with ``os.killpg``); wait for it
     with ``os.waitpid``."""
-    return _fork(lambda: _root(client, list(enumerate(leaves)), settings, report), True)
+    return _fork(lambda: _root(simulator, list(enumerate(leaves)), settings, report), True)
 
 
 class _SharedLog:
@@ -82,11 +82,11 @@ class _SharedLog:
         self.calls.append(('write_sample', (t_ns, list(messages))))
 
 
-def _root(client: Any, group: list[tuple[int, tuple[Job, Path]]], settings: Settings,
+def _root(simulator: Any, group: list[tuple[int, tuple[Job, Path]]], settings: Settings,
           report: Report) -> int:
     try:
         log = _SharedLog()
-        projection = Projection(client, group[0][1][0], settings, log)
+        projection = Projection(simulator, group[0][1][0], settings, log)
     except Exception as exc:
         return _fail(group, exc, report)
     return _grow(projection, log, group, settings, report)

@@ -116,6 +116,12 @@ class Job:
         """The settings this projection runs with, given those of the settings file."""
         return settings.for_projection(self.program, self.physics)
 
+    def check_engine(self, settings: Settings) -> None:
+        """The engine of this projection at ``settings`` can run it
+        (:func:`~projection_server.simulation.engines.check`; raises ProjectionError)."""
+        _check_engine(self.settings(settings).physics.engine, self.program,
+                      self._scenario_json)
+
     def family(self, settings: Settings) -> str | None:
         """Equal for projections that may share their first steps
         (:mod:`~projection_server.simulation.branching`): same scenario, program, settings
@@ -146,6 +152,13 @@ class Job:
     def _files_part(self) -> dict[str, str]:
         # Absent for a scenario without model files: its key is what it always was.
         return {'files': canonical_json(self.files)} if self.files else {}
+
+
+@functools.lru_cache(maxsize=256)
+def _check_engine(engine: str, program: str, scenario_json: str) -> None:
+    from projection_server.simulation import engines
+
+    engines.check(engine, program, parse_scenario(json.loads(scenario_json)))
 
 
 def _assembled(parts: dict[str, str]) -> str:

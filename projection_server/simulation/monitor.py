@@ -72,11 +72,10 @@ class Monitor:
         self._frames: list[tuple[Any, ...]] | None = None
         self._tf: tuple[tuple[str, str], ...] = ()
         self._tf_pack: Any = None
-        client = physics.client
-        self._base_pose = client.getBasePositionAndOrientation
-        self._link_states = client.getLinkStates
-        self._multiply = client.multiplyTransforms
-        self._invert = client.invertTransform
+        self._base_pose = physics.base_pose
+        self._link_poses = physics.link_poses
+        self._multiply = physics.multiply_transforms
+        self._invert = physics.invert_transform
         self._clock_pack = _clock_template().pack
         self._grippers: dict[tuple[Any, str], tuple[Any, tuple[str, str, list[str]]]] = {}
         self._objects: tuple[tuple[str, ...] | None, Any] = (None, None)   # names, their pack
@@ -188,7 +187,7 @@ class Monitor:
         their parent links, in the order of ``self._tf`` (the frames, planned once)."""
         if self._frames is None:
             self._plan()
-        base_pose, link_states = self._base_pose, self._link_states
+        base_pose, link_poses = self._base_pose, self._link_poses
         multiply, invert = self._multiply, self._invert
         poses: list[tuple[Any, Any]] = []
         for body_id, links, chain in self._frames:
@@ -196,14 +195,14 @@ class Monitor:
             poses.append(base)
             if not links:
                 continue
-            states = link_states(body_id, links, computeForwardKinematics=True)
+            states = link_poses(body_id, links)
             if chain is None:
-                poses += [(state[4], state[5]) for state in states]
+                poses += states
                 continue
             world = {-1: base}
             inverse: dict[int, Any] = {}   # of a parent's world pose, once per sample
-            for (link, parent), state in zip(chain, states):
-                world[link] = pose = (state[4], state[5])
+            for (link, parent), pose in zip(chain, states):
+                world[link] = pose
                 inverted = inverse.get(parent)
                 if inverted is None:
                     inverted = inverse[parent] = invert(*world[parent])
@@ -557,7 +556,7 @@ def _link_frame(body: Body, link: int) -> str:
 
 def _link_parents(physics: Physics, body: Body) -> dict[int, int]:
     """Link index -> index of its parent link (-1: the base), from the loaded URDF."""
-    return {link: physics.client.getJointInfo(body.body_id, link)[16] for link in body.links}
+    return {link: physics.link_parent(body.body_id, link) for link in body.links}
 
 
 @functools.lru_cache(maxsize=16)
@@ -591,5 +590,4 @@ def robot_description(robot: str, urdf: str) -> str:
 
 def _relative(physics: Physics, parent: Any, child: Any) -> tuple[Any, Any]:
     """The pose ``child`` (world) in the frame of the pose ``parent`` (world)."""
-    client = physics.client
-    return client.multiplyTransforms(*client.invertTransform(*parent), *child)
+    return physics.multiply_transforms(*physics.invert_transform(*parent), *child)

@@ -192,8 +192,7 @@ class EggShell(Breakable):
         if cache:
             for key in [k for k in cache if k not in groups]:
                 del cache[key]
-        c = physics.client
-        pos, orn = c.getBasePositionAndOrientation(body_id)
+        pos, orn = physics.base_pose(body_id)
         pads, states = self._pads, None
         largest = 0.0   # max(loads, default=0.0); the loads are not negative
         for key, (force, fx, fy, fz) in groups.items():
@@ -204,9 +203,8 @@ class EggShell(Breakable):
             if pad is not None:
                 if states is None:
                     links = self._pad_links[key[0]]
-                    states = dict(zip(links, c.getLinkStates(key[0], links,
-                                                             computeForwardKinematics=True)))
-                load = self._pad_load(c, key, pad[1], states[key[1]], force, pos, orn)
+                    states = dict(zip(links, physics.link_poses(key[0], links)))
+                load = self._pad_load(physics, key, pad[1], states[key[1]], force, pos, orn)
             if load is None:
                 where = (fx / force - pos[0], fy / force - pos[1], fz / force - pos[2])
                 load = cm.curvature_load(force, self.semi_axes, _rotate(_conjugate(orn), where))
@@ -214,13 +212,13 @@ class EggShell(Breakable):
                 largest = load
         return largest
 
-    def _pad_load(self, client: Any, key: tuple[int, int], pad: Pad, state: Any,
+    def _pad_load(self, physics: Physics, key: tuple[int, int], pad: Pad, state: Any,
                   force: float, pos: tuple[float, float, float],
                   orn: tuple[float, float, float, float]) -> float | None:
-        """Equivalent load of a pad's contact (the pad link's ``state``); None if the pad is
-        not over the shell."""
-        inverse = _conjugate(state[5])
-        (px, py, pz), (qx, qy, qz) = pos, state[4]
+        """Equivalent load of a pad's contact (``state``: the pad link's world frame);
+        None if the pad is not over the shell."""
+        inverse = _conjugate(state[1])
+        (px, py, pz), (qx, qy, qz) = pos, state[0]
         offset = _rotate(inverse, (px - qx, py - qy, pz - qz))
         turn = _multiply(inverse, orn)
         cached = self._cache.get(key)
@@ -231,9 +229,9 @@ class EggShell(Breakable):
                     <= CACHE_SHIFT
                     and _angle(turn, turn0) <= CACHE_TURN):
                 return load0 * force / force0
-        origin = np.asarray(state[4])
-        rot = np.asarray(client.getMatrixFromQuaternion(state[5])).reshape(3, 3)
-        shell = np.asarray(client.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        origin = np.asarray(state[0])
+        rot = physics.rotation_matrix(state[1])
+        shell = physics.rotation_matrix(orn)
         peak = cm.pad_peak_pressure(force, self.semi_axes, shell, np.asarray(pos),
                                     origin + rot @ pad.centre, (rot @ np.asarray(pad.axes).T).T,
                                     rot @ pad.normal, pad.half_extents, pad.stiffness,

@@ -299,11 +299,38 @@ def _bound_client_class() -> type:
 
 
 class Physics:
-    """The simulation of one projection, with named access and queries."""
+    """The simulation of one projection, with named access and queries: PyBullet's.
+
+    What the monitor, the object models and the programs use of an engine is this class's
+    protocol, which every engine implements (MuJoCo's:
+    :class:`~projection_server.simulation.engines.mujoco.physics.MujocoPhysics`):
+
+    * the registry (:attr:`bodies`, :attr:`grippers`, :attr:`models`, :meth:`name_of`,
+      :meth:`link_name`), time (:meth:`step`, :meth:`step_unmonitored`, :attr:`time_ns`);
+    * poses, as ``((x, y, z), (x, y, z, w))``: :meth:`pose` by name, ``base_pose(body)``,
+      :meth:`link_poses` (a link's frame: its URDF frame), :meth:`link_parent`, and the
+      transform algebra :meth:`multiply_transforms`, :meth:`invert_transform`,
+      :meth:`rotation_matrix`, :meth:`quaternion_from_euler`; ``base_velocity(body)``;
+    * contacts: :meth:`contact_points` of a body in the last step, each a tuple of
+      PyBullet's ``getContactPoints`` layout (flag, body a, body b, link a, link b, position
+      on a, on b, normal from b to a, distance, normal force, friction 1, its direction,
+      friction 2, its direction; a being the body asked for). Asked from the later-built
+      body of a pair, the normal is turned round but the friction directions are not
+      (Bullet's own order of the pair's bodies): an engine gives the same.
+    """
+
+    engine = 'pybullet'
 
     def __init__(self, client: Any, settings: Settings, scenario: Scenario | None = None,
                  tool_control: bool = False):
         self.client = client
+        # Bound once: the monitor and the egg's model ask for them every step.
+        if client is not None:
+            self.base_pose = client.getBasePositionAndOrientation
+            self.multiply_transforms = client.multiplyTransforms
+            self.invert_transform = client.invertTransform
+            self.quaternion_from_euler = client.getQuaternionFromEuler
+            self.base_velocity = client.getBaseVelocity
         self.settings = settings
         self.scenario = scenario   # what the world is built from
         # Robots are built to have their tool moved (plans), not driven joint by joint.
@@ -398,10 +425,30 @@ class Physics:
         for hook in self.step_hooks:
             hook()
 
+    def step_unmonitored(self, steps: int) -> None:
+        """``steps`` engine steps without object models, hooks or the projection's clock
+        (settling the world before a program starts)."""
+        step = self.client.stepSimulation
+        for _ in range(steps):
+            step()
+
     # --- named queries -----------------------------------------------------------------
     def pose(self, name: str) -> tuple[Vec3, Quat]:
         """World position and orientation (x, y, z, w) of a body's base."""
         return self.client.getBasePositionAndOrientation(self.body(name).body_id)
+
+    def link_poses(self, body_id: int, links: list[int]) -> list[tuple[Vec3, Quat]]:
+        """World frames of ``links`` of ``body_id``, in one query."""
+        return [(state[4], state[5]) for state in
+                self.client.getLinkStates(body_id, links, computeForwardKinematics=True)]
+
+    def link_parent(self, body_id: int, link: int) -> int:
+        """The link's parent link (-1: the base)."""
+        return self.client.getJointInfo(body_id, link)[16]
+
+    def rotation_matrix(self, quaternion: Quat) -> np.ndarray:
+        """The 3x3 rotation of a quaternion (x, y, z, w)."""
+        return np.asarray(self.client.getMatrixFromQuaternion(quaternion)).reshape(3, 3)
 
     def link_pose(self, name: str, link: int) -> tuple[Vec3, Quat]:
         state = self.client.getLinkState(self.body(name).body_id, link,

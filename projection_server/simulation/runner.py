@@ -1,8 +1,9 @@
 """One projection, start to end, in the calling process: world, program, monitoring, bag.
 
-A :class:`Simulator` keeps one DIRECT-mode PyBullet client for many projections (what a
-pool worker does, :mod:`projection_server.workers.process`); each projection still
-builds a fresh world in it and sets every engine parameter it depends on. A finished
+A :class:`Simulator` keeps a session of each engine it has run (a DIRECT-mode PyBullet
+client, :mod:`~projection_server.simulation.engines`) for many projections (what a pool
+worker does, :mod:`projection_server.workers.process`); each projection still builds a
+fresh world in it and sets every engine parameter it depends on. A finished
 :class:`Projection` keeps what its monitor logged (``monitor.records``), from which the
 worker makes its timeline (:mod:`projection_server.workers.run`).
 """
@@ -15,13 +16,14 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from projection_server.bags import BagWriter
+from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.canonical import canonical_json
+from projection_server.settings import ENGINES
+from projection_server.simulation import engines
 from projection_server.simulation.job import code_version
 from projection_server.simulation.monitor import Monitor
-from projection_server.simulation.physics import bound_client
 from projection_server.simulation.programs import get as get_program
 from projection_server.simulation.scenario import parse_scenario
-from projection_server.simulation.world import build_world
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -33,15 +35,28 @@ __all__ = ['Projection', 'Simulator', 'projection_info']
 
 
 class Simulator:
-    """A warm PyBullet client that runs projections one after the other."""
+    """Warm engine sessions (:mod:`~projection_server.simulation.engines`), one of each
+    engine, that run projections one after the other."""
 
     def __init__(self) -> None:
-        import pybullet
-
         from projection_server.bags import typestore
 
         typestore()   # message types are registered once per process
-        self.client = bound_client(pybullet.DIRECT)
+        self._sessions: dict[str, Any] = {}
+        for engine in ENGINES:   # opened (imported) before the first projection asks
+            self.session(engine)
+
+    @property
+    def client(self) -> Any:
+        """The PyBullet session's client."""
+        return self.session('pybullet').client
+
+    def session(self, engine: str) -> Any:
+        """The open session of ``engine``."""
+        session = self._sessions.get(engine)
+        if session is None:
+            session = self._sessions[engine] = engines.get(engine).open()
+        return session
 
     def run(self, job: Job, settings: Settings, bag_path: Path) -> Projection:
         """Simulate ``job`` in a fresh world, log it into a new bag at ``bag_path`` and
@@ -53,25 +68,34 @@ class Simulator:
         (a task may end when what it set in motion has come to rest).
         """
         with BagWriter(bag_path) as bag:
-            projection = Projection(self.client, job, settings, bag)
+            projection = Projection(self, job, settings, bag)
             projection.advance()
         return projection
 
     def close(self) -> None:
-        self.client.disconnect()
+        for session in self._sessions.values():
+            session.close()
+        self._sessions = {}
 
 
 class Projection:
-    """One projection under way: ``job``'s fresh world in ``client``, its task and its
-    monitor logging into ``bag`` (a :class:`~projection_server.bags.BagWriter`, or what
-    writes like one), at step 0 with the ``/projection/info`` written."""
+    """One projection under way: ``job``'s fresh world in a session of its engine (of
+    ``simulator``), its task and its monitor logging into ``bag`` (a
+    :class:`~projection_server.bags.BagWriter`, or what writes like one), at step 0 with the
+    ``/projection/info`` written."""
 
-    def __init__(self, client: Any, job: Job, settings: Settings, bag: Any):
+    def __init__(self, simulator: Simulator | Any, job: Job, settings: Settings, bag: Any):
+        """``simulator``: a :class:`Simulator`, or a PyBullet client of the caller's (the
+        projection runs on PyBullet in it)."""
+        if not hasattr(simulator, 'session'):
+            simulator = _ClientSessions(simulator)
         self.scenario = scenario = parse_scenario(job.scenario)
         info = projection_info(job, settings, scenario.name)
         program = get_program(job.program)
-        self.physics = physics = build_world(client, scenario, job.settings(settings),
-                                             tool_control=program.takes_plan)
+        own = job.settings(settings)
+        engines.check(own.physics.engine, job.program, scenario)
+        self.physics = physics = simulator.session(own.physics.engine).build_world(
+            scenario, own, tool_control=program.takes_plan)
         extra = {'plan': job.plan} if program.takes_plan else {}
         self.task = program.create(physics, scenario, dict(job.params),
                                    np.random.default_rng(int(info['job_key'][:16], 16)),
@@ -98,6 +122,21 @@ class Projection:
                 monitor.sample()
                 if finished is not None and finished(physics):
                     break
+
+
+class _ClientSessions:
+    """The sessions of a caller's PyBullet client: PyBullet's only."""
+
+    def __init__(self, client: Any):
+        from projection_server.simulation.engines.pybullet import BulletSession
+
+        self._session = BulletSession(client)
+
+    def session(self, engine: str) -> Any:
+        if engine != self._session.engine:
+            raise ProjectionError(ErrorKind.INVALID_SETTINGS,
+                                  f'a PyBullet client cannot run the {engine} engine')
+        return self._session
 
 
 def projection_info(job: Job, settings: Settings, scenario_name: str) -> dict[str, str]:

@@ -48,23 +48,21 @@ def settle(physics: Physics) -> float:
     a world at rest whatever its time step: contacts of bodies spawned onto each other
     carry their weights, not a recovery from a spawn.
     """
-    c = physics.client
     rate = physics.settings.physics.rate_hz
     chunk = max(1, round(SETTLE_CHECK * rate))
     moving = [b.body_id for b in physics.bodies.values()
               if not b.static and not b.driven]
     steps = 0
     while steps < SETTLE_MAX * rate:
-        for _ in range(chunk):
-            c.stepSimulation()
+        physics.step_unmonitored(chunk)
         steps += chunk
-        if steps >= SETTLE_MIN * rate and all(_at_rest(c, body) for body in moving):
+        if steps >= SETTLE_MIN * rate and all(_at_rest(physics, body) for body in moving):
             break
     return steps / rate
 
 
-def _at_rest(client: Any, body_id: int) -> bool:
-    linear, angular = client.getBaseVelocity(body_id)
+def _at_rest(physics: Physics, body_id: int) -> bool:
+    linear, angular = physics.base_velocity(body_id)
     return (math.hypot(*linear) < REST_SPEED
             and 0.1 * math.hypot(*angular) < REST_SPEED)
 

@@ -185,6 +185,8 @@ class BackendBase(ABC):
         """:meth:`submit` each of ``jobs``, queued at once (so that a worker can take the
         projections of one family together)."""
         check_timeout(timeout)
+        for job in jobs:   # a program its engine cannot run is refused before it is queued
+            job.check_engine(self.settings)
         keys = [job.key(self.settings) for job in jobs]
         futures = []
         with self._lock:

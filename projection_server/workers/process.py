@@ -115,7 +115,7 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
         os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 
     try:
-        pid = start_tree(simulator.client, leaves, settings, report)
+        pid = start_tree(simulator, leaves, settings, report)
     except Exception:   # e.g. fork failed: the pool runs the projections one by one
         os.close(reader)
         os.close(writer)

@@ -70,6 +70,18 @@ def test_a_ray_projection_gives_the_local_backends_bag_and_timeline(
     assert ['break', ['egg1']] in [e[:2] for e in made.timeline['events']]
 
 
+def test_a_mujoco_projection_on_ray_gives_the_local_backends_bag(
+        ray_backend, pool, make_scenario):
+    mujoco = Job.checked(make_scenario(), 'grasp_object', {'force': 9.0, 'position': 0.02},
+                         {'engine': 'mujoco'})
+    made = ray_backend.submit(mujoco, timeout=60.0).result(60.0)
+    local = pool.submit(mujoco, timeout=60.0).result(60.0)
+    assert Path(made.bag).name == Path(local.bag).name
+    for name in sorted(p.name for p in Path(local.bag).iterdir()):
+        assert (Path(made.bag) / name).read_bytes() == (Path(local.bag) / name).read_bytes()
+    assert ['break', ['egg1']] in [e[:2] for e in made.timeline['events']]
+
+
 def test_an_identical_projection_comes_from_the_bag_directory(ray_backend, make_scenario):
     first = ray_backend.submit(job(make_scenario, 5.0), timeout=60.0).result(60.0)
     again = ray_backend.submit(job(make_scenario, 5.0), timeout=60.0)

@@ -95,6 +95,29 @@ def test_every_option_is_a_field_of_the_physics_with_a_default_in_its_range(sett
     described = {d['name']: d for d in settings.describe_physics('pour')}
     assert set(described) == set(PHYSICS_OPTIONS)
     for name, d in described.items():
+        if 'values' in d:   # a choice of names: the engine
+            assert d['default'] in d['values'], name
+            continue
         assert d['min'] <= d['default'] <= d['max'], name
     assert described['solver_iterations']['default'] == 20
     assert described['rate_hz']['multiple_of'] == 60
+
+
+def test_the_engine_is_a_setting_that_names_one_of_the_engines(settings):
+    from projection_server.settings import ENGINES
+    from projection_server.errors import ProjectionError
+
+    assert settings.physics.engine == 'pybullet'
+    mujoco = settings.for_projection('grasp_object', {'engine': 'mujoco'})
+    assert mujoco.physics.engine == 'mujoco'
+    assert mujoco.to_dict()['physics']['engine'] == 'mujoco'
+    # PyBullet's settings, chosen or not, are what they were before there was a choice.
+    assert 'engine' not in settings.for_projection('grasp_object', {'engine': 'pybullet'}
+                                                   ).to_dict()['physics']
+    assert (settings.projection_json('grasp_object', {'engine': 'pybullet'})
+            == settings.projection_json('grasp_object'))
+    assert (settings.projection_json('grasp_object', {'engine': 'mujoco'})
+            != settings.projection_json('grasp_object'))
+    with pytest.raises(ProjectionError) as info:
+        settings.for_projection('grasp_object', {'engine': 'ode'})
+    assert all(name in str(info.value) for name in ENGINES)

@@ -65,11 +65,11 @@ class GraspObject:
         self._physics, self._robot, self._target = physics, robot.name, target.name
         settle(physics)   # the egg lies at rest before the gripper is placed beside it
         position, orientation = physics.pose(target.name)
-        rot = np.asarray(physics.client.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+        rot = physics.rotation_matrix(orientation)
         yaw = math.atan2(rot[1, 0], rot[0, 0])   # heading of the egg's long axis
         axis = np.array([math.cos(yaw), math.sin(yaw), 0.0])
         grasp = np.asarray(position) + params['position'] * axis
-        self.gripper.place(tuple(grasp), physics.client.getQuaternionFromEuler((0, 0, yaw)),
+        self.gripper.place(tuple(grasp), physics.quaternion_from_euler((0, 0, yaw)),
                            approach=APPROACH_DISTANCE, lift=0.0, opening=OPEN_WIDTH)
         # The gantry is given its targets at every physics step, with the speeds at which
         # they move: targets that jumped at the control rate made the pads' speed jump at
@@ -115,4 +115,5 @@ PROGRAM = register(Program(
     ),
     create=GraspObject,
     doc=__doc__.splitlines()[0],
+    engines=('pybullet', 'mujoco'),
 ))

@@ -468,8 +468,7 @@ class PlanTask:
         t = physics.time
         if t >= self._done_at + SETTLE_AFTER:
             return True
-        c = physics.client
-        if all(math.hypot(*c.getBaseVelocity(b.body_id)[0]) < REST_SPEED
+        if all(math.hypot(*physics.base_velocity(b.body_id)[0]) < REST_SPEED
                for b in physics.bodies.values()
                if not b.static and not b.driven and b.group is None):
             if self._rest_since is None:
@@ -554,4 +553,5 @@ PROGRAM = register(Program(
     doc=__doc__.splitlines()[0],
     setup_params=(),
     takes_plan=True,
+    engines=('pybullet', 'mujoco'),
 ))

@@ -77,7 +77,7 @@ class Program:
     A program that ``takes_plan`` (``plan``) is given the job's plan as ``create(...,
     plan=plan)``; its parameters are the plan's, any names, and it drives robots through
     their tool (``build_world``'s ``tool_control``). It is no named program
-    (:func:`describe` leaves it out).
+    (:func:`describe` leaves it out). ``engines`` are the physics engines it runs on.
     """
 
     name: str
@@ -86,6 +86,8 @@ class Program:
     doc: str = ''
     setup_params: tuple[str, ...] | None = None
     takes_plan: bool = False
+    # The engines whose protocol the program's task needs no more than (``engines``).
+    engines: tuple[str, ...] = ('pybullet',)
 
     def check(self, values: Mapping[str, Any]) -> dict[str, float]:
         """Actual parameter values: given ones checked against their ranges, defaults added.

@@ -33,4 +33,5 @@ PROGRAM = register(Program(
     params=(Parameter('duration', 's', 0.1, 60.0, 2.0, 'how long the world runs'),),
     create=Wait,
     doc=__doc__.splitlines()[0],
+    engines=('pybullet', 'mujoco'),
 ))

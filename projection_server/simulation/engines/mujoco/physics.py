@@ -1,0 +1,451 @@
+"""MuJoCo's implementation of the engine protocol (:class:`~projection_server.simulation.
+physics.Physics`): a compiled ``MjModel`` and its ``MjData``, addressed by entity names.
+
+An entity is one MuJoCo body (its ``body_id`` on the protocol); a robot's links are the
+bodies below its root, addressed by their MuJoCo body ids (its root is link -1, as in
+PyBullet). Poses are read from ``xpos``/``xquat`` (quaternions turned to (x, y, z, w));
+contacts from ``data.contact`` and the constraint forces of the step, in the protocol's
+layout of a contact point, once per step for every body.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, TYPE_CHECKING
+
+import mujoco
+import numpy as np
+
+from projection_server.simulation.physics import Physics, Shape
+
+if TYPE_CHECKING:
+    from projection_server.settings import Settings
+    from projection_server.simulation.physics import Body, Pad
+    from projection_server.simulation.scenario import Scenario
+
+__all__ = ['MujocoGripper', 'MujocoPhysics']
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+
+class MujocoPhysics(Physics):
+    """The simulation of one projection in MuJoCo (see the module doc)."""
+
+    engine = 'mujoco'
+
+    def __init__(self, model: Any, data: Any, settings: Settings,
+                 scenario: Scenario | None = None, tool_control: bool = False):
+        super().__init__(None, settings, scenario, tool_control)
+        self.model, self.data = model, data
+        # Run before every engine step: the motors' commands of that step.
+        self.controllers: list[Callable[[], None]] = []
+        self._owner: np.ndarray = np.zeros((0, 2), dtype=int)   # geom -> (body, link)
+        self._owner_list: list[tuple[int, int]] = []
+        self._points: dict[int, list[tuple[Any, ...]]] | None = None   # of this step
+        self._free: dict[int, int] = {}   # body -> its free joint's first dof
+
+    def bind(self) -> None:
+        """Map every geom to its entity's body and link, once the bodies are registered."""
+        model = self.model
+        root = {}
+        for body in self.bodies.values():
+            root[body.body_id] = (body.body_id, -1)
+            for link in body.links:
+                root[link] = (body.body_id, link)
+        owner = np.full((model.ngeom, 2), -2, dtype=int)
+        for geom in range(model.ngeom):
+            body = int(model.geom_bodyid[geom])
+            while body not in root and body != 0:
+                body = int(model.body_parentid[body])
+            if body in root:
+                owner[geom] = root[body]
+        self._owner = owner
+        self._owner_list = [tuple(row) for row in owner.tolist()]
+        for body in self.bodies.values():
+            joint = int(model.body_jntadr[body.body_id])
+            if joint >= 0 and model.jnt_type[joint] == mujoco.mjtJoint.mjJNT_FREE:
+                self._free[body.body_id] = int(model.jnt_dofadr[joint])
+
+    # --- registry -----------------------------------------------------------------------
+    def replace_body(self, name: str, body_id: int, shape: Shape) -> Body:
+        """The body of ``name`` now has ``shape`` (its builder changed it in place: a
+        compiled model keeps its bodies)."""
+        old = self.bodies[name]
+        old.shape = shape
+        self.shapes_changed = True
+        self.bodies_version += 1
+        self._points = None
+        return old
+
+    # --- time ---------------------------------------------------------------------------
+    def step(self) -> None:
+        self._engine_step()
+        self.step_count += 1
+        for model in self.models:
+            model.after_step(self)
+        for hook in self.step_hooks:
+            hook()
+
+    def step_unmonitored(self, steps: int) -> None:
+        for _ in range(steps):
+            self._engine_step()
+
+    def _engine_step(self) -> None:
+        for control in self.controllers:
+            control()
+        mujoco.mj_step(self.model, self.data)
+        self._points = None
+
+    # --- poses ----------------------------------------------------------------------------
+    def base_pose(self, body_id: int) -> tuple[Vec3, Quat]:
+        """A body's base frame as PyBullet's: at its centre of mass, turned as its link."""
+        d = self.data
+        w, x, y, z = d.xquat[body_id].tolist()
+        return tuple(d.xipos[body_id].tolist()), (x, y, z, w)
+
+    def pose(self, name: str) -> tuple[Vec3, Quat]:
+        return self.base_pose(self.body(name).body_id)
+
+    def link_pose(self, name: str, link: int) -> tuple[Vec3, Quat]:
+        return self.base_pose(link)
+
+    def link_poses(self, body_id: int, links: list[int]) -> list[tuple[Vec3, Quat]]:
+        d = self.data
+        positions, quaternions = d.xpos[links].tolist(), d.xquat[links].tolist()
+        return [(tuple(p), (q[1], q[2], q[3], q[0])) for p, q in zip(positions, quaternions)]
+
+    def link_parent(self, body_id: int, link: int) -> int:
+        parent = int(self.model.body_parentid[link])
+        return -1 if parent == body_id else parent
+
+    def base_velocity(self, body_id: int) -> tuple[Vec3, Vec3]:
+        dof = self._free.get(body_id)
+        if dof is None:
+            return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+        v = self.data.qvel[dof:dof + 6].tolist()
+        return tuple(v[:3]), tuple(v[3:])   # angular in the body's frame: its norm counts
+
+    @staticmethod
+    def multiply_transforms(p1: Vec3, q1: Quat, p2: Vec3, q2: Quat) -> tuple[Vec3, Quat]:
+        r = _rotate(q1, p2)
+        return (p1[0] + r[0], p1[1] + r[1], p1[2] + r[2]), _multiply(q1, q2)
+
+    @staticmethod
+    def invert_transform(p: Vec3, q: Quat) -> tuple[Vec3, Quat]:
+        c = (-q[0], -q[1], -q[2], q[3])
+        r = _rotate(c, p)
+        return (-r[0], -r[1], -r[2]), c
+
+    @staticmethod
+    def rotation_matrix(quaternion: Quat) -> np.ndarray:
+        x, y, z, w = quaternion
+        out = np.empty(9)
+        mujoco.mju_quat2Mat(out, np.array([w, x, y, z], dtype=float))
+        return out.reshape(3, 3)
+
+    @staticmethod
+    def quaternion_from_euler(rpy: Any) -> Quat:
+        """PyBullet's convention: roll about x, then pitch about y, then yaw about z, all
+        about the fixed axes."""
+        roll, pitch, yaw = (float(a) / 2 for a in rpy)
+        cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch),
+                                  math.sin(pitch), math.cos(yaw), math.sin(yaw))
+        return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
+
+    # --- contacts ---------------------------------------------------------------------------
+    def contact_points(self, body_id: int) -> list[tuple[Any, ...]]:
+        points = self._points if self._points is not None else self._read_contacts()
+        return points.get(body_id, [])
+
+    def contact_points_of(self, body_ids: list[int]) -> list[Any]:
+        points = self._points if self._points is not None else self._read_contacts()
+        return [points.get(body_id, []) for body_id in body_ids]
+
+    def contact_force(self, a: str, b: str) -> float:
+        other = self.body(b).body_id
+        return sum(p[9] for p in self.contact_points(self.body(a).body_id) if p[2] == other)
+
+    def _contact_points(self) -> list[Any]:
+        points = self._points if self._points is not None else self._read_contacts()
+        return [p for body, ps in points.items() for p in ps if p[2] > body]
+
+    def _read_contacts(self) -> dict[int, list[tuple[Any, ...]]]:
+        """The step's contacts, each in the protocol's layout from either body. The contact
+        frame's normal points from geom 1 to geom 2, and the force of the constraint
+        (normal, then the two frictional components along the frame's tangents: an
+        elliptic cone's rows in ``efc_force``) acts on geom 2. A step has a handful of
+        contacts: plain floats cost less than numpy's overhead on them."""
+        d = self.data
+        n = d.ncon
+        points: dict[int, list[tuple[Any, ...]]] = {}
+        self._points = points
+        if n == 0:
+            return points
+        contact = d.contact
+        geoms = contact.geom.tolist()
+        addresses = contact.efc_address.tolist()
+        dims = contact.dim.tolist()
+        frames = contact.frame.tolist()
+        positions = contact.pos.tolist()
+        distances = contact.dist.tolist()
+        owner = self._owner_list
+        elliptic = self.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+        efc = d.efc_force
+        out = np.zeros(6)
+        for k in range(n):
+            address = addresses[k]
+            if address < 0:   # excluded: no constraint
+                continue
+            g1, g2 = geoms[k]
+            b1, l1 = owner[g1]
+            b2, l2 = owner[g2]
+            if b1 < 0 or b2 < 0 or b1 == b2:
+                continue
+            if elliptic:
+                fn = float(efc[address])
+                ft1, ft2 = ((float(efc[address + 1]), float(efc[address + 2]))
+                            if dims[k] > 1 else (0.0, 0.0))
+            else:
+                mujoco.mj_contactForce(self.model, d, k, out)
+                fn, ft1, ft2 = float(out[0]), float(out[1]), float(out[2])
+            nx, ny, nz, t1x, t1y, t1z, t2x, t2y, t2z = frames[k]
+            position = tuple(positions[k])
+            t1, t2 = (t1x, t1y, t1z), (t2x, t2y, t2z)
+            if b1 < b2:   # a = geom 1's body: the normal from b to a is -n; a feels -f
+                a, la, b, lb = b1, l1, b2, l2
+                normal, back, f1, f2 = (-nx, -ny, -nz), (nx, ny, nz), -ft1, -ft2
+            else:
+                a, la, b, lb = b2, l2, b1, l1
+                normal, back, f1, f2 = (nx, ny, nz), (-nx, -ny, -nz), ft1, ft2
+            dist = distances[k]
+            points.setdefault(a, []).append(
+                (0, a, b, la, lb, position, position, normal, dist, fn, f1, t1, f2, t2))
+            # From the later body: the normal turned, the friction as it is (the protocol).
+            points.setdefault(b, []).append(
+                (0, b, a, lb, la, position, position, back, dist, fn, f1, t1, f2, t2))
+        return points
+
+
+class MujocoGripper:
+    """:class:`~projection_server.simulation.physics.Gripper`'s commands on MuJoCo: the
+    gantry's lift and approach and each finger's drive are joints of a large inertia that
+    are set their speeds each step; a finger follows its drive through a tendon whose
+    friction loss is the command's force limit (a velocity motor of bounded force, solved
+    with the contacts, as PyBullet's motors are). Position control corrects ``tracking_rate`` [1/s] of its error a second, with
+    the target's speed fed forward, as PyBullet's position motors do at their gain; the
+    fingers close at a speed and then push with the grip force."""
+
+    def __init__(self, physics: MujocoPhysics, name: str, body_id: int,
+                 joints: dict[str, Any], actuators: dict[int, int], pads: list[Pad],
+                 max_joint_force: float, max_force: float = math.inf,
+                 max_opening: float = math.inf, tracking_rate: float = 24.0,
+                 finger_links: list[str] | None = None, mocap: int = -1):
+        self.name = name
+        self.body_id = body_id
+        self.pads = pads
+        self._physics = physics
+        self._lift = joints.get('lift')
+        self._approach = joints.get('approach')
+        self._fingers = tuple(joints['fingers'])
+        self._finger_links = (list(finger_links) if finger_links is not None
+                              else [pad.link_name for pad in pads])
+        self._max_joint_force = max_joint_force
+        self.max_force = max_force
+        self.max_opening = max_opening
+        self._rate = tracking_rate
+        self._mocap = mocap
+        self.command = 'open'
+        self.commanded_force = 0.0
+        model = physics.model
+        self._drives = tuple(joints['drives'])
+        self._tendons = np.array(joints['tendons'])
+        self._finger_qpos = np.array([model.jnt_qposadr[j] for j in self._fingers])
+        # The servos' joints: a finger is commanded through its drive.
+        self._drive_of = dict(zip(self._fingers, self._drives))
+        order = [j for j in (self._lift, self._approach, *self._drives) if j is not None]
+        self._joints = np.array(order)
+        self._qpos = np.array([model.jnt_qposadr[j] for j in order])
+        self._dof = np.array([model.jnt_dofadr[j] for j in order])
+        self._servos = 0   # every joint is set its speed (none is actuated)
+        self._slot = {j: i for i, j in enumerate(order)}
+        count = len(order)
+        # Per joint: position target, fed-forward speed, speed limit (inf: none), position
+        # control on (else the fed-forward speed is the command), force limit.
+        self._qpos_list = self._qpos.tolist()
+        self._dof_list = self._dof.tolist()
+        self._target = physics.data.qpos[self._qpos].tolist()
+        self._speed = [0.0] * count
+        self._limit = [math.inf] * count
+        self._servo = [True] * count
+        self._force = [max_joint_force] * count
+        self._apply_limits()
+        physics.controllers.append(self._control)
+
+    @property
+    def finger_links(self) -> list[str]:
+        return self._finger_links
+
+    @property
+    def fingers(self) -> tuple[int, ...]:
+        return self._fingers
+
+    def _control(self) -> None:
+        """The servos' velocity commands and the drives' speeds of the next step."""
+        data = self._physics.data
+        qpos, qvel = data.qpos, data.qvel
+        rate = self._rate
+        for dof, address, target, speed, limit, servo in zip(
+                self._dof_list, self._qpos_list, self._target, self._speed, self._limit,
+                self._servo):
+            if servo:
+                speed = speed + rate * (target - qpos[address])
+            qvel[dof] = -limit if speed < -limit else limit if speed > limit else speed
+
+    def _apply_limits(self) -> None:
+        n = len(self._drives)
+        self._physics.model.tendon_frictionloss[self._tendons] = self._force[-n:]
+        self._tendon_list = self._tendons.tolist()
+
+    def _set(self, joint: int, target: float | None, speed: float, limit: float,
+             force: float) -> None:
+        i = self._slot[self._drive_of.get(joint, joint)]
+        self._servo[i] = target is not None
+        if target is not None:
+            self._target[i] = target
+        self._speed[i], self._limit[i], self._force[i] = speed, limit, force
+
+    def place(self, position: Vec3, orientation: Quat, approach: float, lift: float,
+              opening: float) -> None:
+        physics = self._physics
+        model, data = physics.model, physics.data
+        x, y, z, w = orientation
+        data.mocap_pos[self._mocap] = position
+        data.mocap_quat[self._mocap] = (w, x, y, z)
+        half = min(opening, self.max_opening) / 2
+        for joint, value in ((self._approach, approach), (self._lift, lift),
+                             *((f, half) for f in (*self._fingers, *self._drives))):
+            data.qpos[model.jnt_qposadr[joint]] = value
+            data.qvel[model.jnt_dofadr[joint]] = 0.0
+        mujoco.mj_forward(model, data)
+        self.move(approach, lift)
+        self.open(opening, speed=0.1)
+
+    def move(self, approach: float, lift: float, approach_speed: float = 0.0,
+             lift_speed: float = 0.0) -> None:
+        force = self._max_joint_force
+        self._set(self._approach, approach, approach_speed, math.inf, force)
+        self._set(self._lift, lift, lift_speed, math.inf, force)
+        self._apply_limits()
+
+    def close(self, force: float, speed: float) -> None:
+        force = min(force, self.max_force)
+        self.command, self.commanded_force = 'close', force
+        for j in self._fingers:
+            self._set(j, None, -speed, math.inf, force)
+        self._apply_limits()
+
+    def open(self, opening: float, speed: float) -> None:
+        self.command, self.commanded_force = 'open', 0.0
+        for j in self._fingers:
+            self._set(j, min(opening, self.max_opening) / 2, 0.0, speed,
+                      self._max_joint_force)
+        self._apply_limits()
+
+    def opening(self) -> float:
+        return self.state()[0]
+
+    def measured_force(self) -> float:
+        return self.state()[1]
+
+    def state(self) -> tuple[float, float]:
+        """``(opening, measured force)``: the fingers' joint values' sum, and the mean
+        magnitude of their servos' forces."""
+        data = self._physics.data
+        n = len(self._fingers)
+        opening = float(data.qpos[self._finger_qpos].sum())
+        # What each finger is pushed with: its tendon's friction.
+        # The friction rows follow the equality rows (MuJoCo's order of constraints).
+        first, last = data.ne, data.ne + data.nf
+        ids, forces = data.efc_id[first:last].tolist(), data.efc_force[first:last].tolist()
+        kinds = data.efc_type[first:last].tolist()
+        mine, tendon = self._tendon_list, mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON
+        return opening, sum(abs(f) for i, f, k in zip(ids, forces, kinds)
+                            if k == tendon and i in mine) / n
+
+    def pad_faces(self) -> list[tuple[Pad, np.ndarray, np.ndarray, np.ndarray]]:
+        faces = []
+        for pad in self.pads:
+            ((origin, quaternion),) = self._physics.link_poses(self.body_id, [pad.link])
+            rot = self._physics.rotation_matrix(quaternion)
+            faces.append((pad, np.asarray(origin) + rot @ pad.centre,
+                          (rot @ np.asarray(pad.axes).T).T, rot @ pad.normal))
+        return faces
+
+
+def _multiply(a: Quat, b: Quat) -> Quat:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def _rotate(q: Quat, v: Vec3) -> Vec3:
+    x, y, z, w = q
+    # v + 2 w (u x v) + 2 u x (u x v), u the vector part
+    cx, cy, cz = y * v[2] - z * v[1], z * v[0] - x * v[2], x * v[1] - y * v[0]
+    dx, dy, dz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
+    return (v[0] + 2 * (w * cx + dx), v[1] + 2 * (w * cy + dy), v[2] + 2 * (w * cz + dz))
+
+
+class MujocoFloatingTool:
+    """:class:`~projection_server.simulation.robots.manipulator.FloatingTool` on MuJoCo: the
+    free gripper is welded to a mocap body that the plan's tool pose moves, softly (a
+    weld's reference time constant of 1 / the tracking rate), so that the tool follows as
+    PyBullet's moving constraint has it follow, and what it pushes pushes back."""
+
+    every_step = True
+
+    def __init__(self, physics: MujocoPhysics, name: str, body_id: int, gripper: Any,
+                 tool: tuple[Any, Any], home: Any, reach: tuple[tuple[float, float], ...],
+                 mocap: int):
+        self.name = name
+        self.body_id = body_id
+        self.gripper = gripper
+        self._physics = physics
+        self._home = np.asarray(home, float)
+        self._reach = reach
+        self._tool = (tuple(tool[0]), tuple(tool[1]))
+        self._link_in_tool = MujocoPhysics.invert_transform(*self._tool)
+        self._mocap = mocap
+        self._target: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+        self.servo(*self.tool_pose())
+
+    def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        d = self._physics.data
+        w, x, y, z = d.xquat[self.body_id].tolist()
+        link = (tuple(d.xpos[self.body_id].tolist()), (x, y, z, w))
+        position, orientation = MujocoPhysics.multiply_transforms(*link, *self._tool)
+        return np.asarray(position), np.asarray(orientation)
+
+    def check_reach(self, position: Any, orientation: Any, what: str) -> None:
+        from projection_server.simulation.robots.manipulator import _unreachable
+
+        offset = np.asarray(position, float) - self._home
+        low = np.array([-self._reach[0][1], -self._reach[1][1], self._reach[2][0]])
+        high = np.array([self._reach[0][1], self._reach[1][1], self._reach[2][1]])
+        outside = float(np.maximum(low - offset, offset - high).max())
+        if outside > 0:
+            raise _unreachable(self.name, what, position, outside, 0.0)
+
+    def servo(self, position: Any, orientation: Any) -> None:
+        target = (tuple(map(float, position)), tuple(map(float, orientation)))
+        if target == self._target:
+            return
+        self._target = target
+        link = MujocoPhysics.multiply_transforms(*target, *self._link_in_tool)
+        d = self._physics.data
+        d.mocap_pos[self._mocap] = link[0]
+        x, y, z, w = link[1]
+        d.mocap_quat[self._mocap] = (w, x, y, z)
