@@ -141,3 +141,32 @@ def test_each_primitive_comes_to_rest_on_the_table_at_its_own_height(make_scenar
     assert math.hypot(*physics.base_velocity(physics.bodies['thing'].body_id)[0]) < 1e-3
     (total,) = [c.normal_force for c in physics.contacts()]
     assert total == pytest.approx(0.3 * 9.81, rel=0.02)
+
+
+def test_a_backend_whose_default_engine_is_mujoco_runs_a_job_that_names_none_on_it(
+        make_scenario, tmp_path):
+    # What the node's physics_engine parameter sets (projection.configure(engine=...)).
+    import dataclasses
+    import json
+
+    from projection_server.simulation import Job
+    from projection_server.workers.local import WorkerPool
+
+    settings = load_settings()
+    settings = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics,
+                                                                         engine='mujoco'))
+    job = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0})
+    with WorkerPool(tmp_path / 'bags', workers=1, settings=settings) as pool:
+        result = pool.submit(job, timeout=60.0).result(60.0)
+        with pytest.raises(ProjectionError) as info:
+            pool.submit(Job.checked(make_scenario(), 'pour', {}), timeout=60.0)
+    from pathlib import Path
+
+    from rosbags.highlevel import AnyReader
+
+    from projection_server.bags import typestore
+    with AnyReader([Path(result.bag)], default_typestore=typestore()) as reader:
+        (message,) = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(
+            [c for c in reader.connections if c.topic == '/projection/info'])]
+    assert json.loads(message.settings_json)['physics']['engine'] == 'mujoco'
+    assert 'pour' in str(info.value) and 'mujoco' in str(info.value)

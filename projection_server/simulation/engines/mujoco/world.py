@@ -5,7 +5,11 @@ Each entity is built by its unit's MuJoCo builder (:mod:`.builders`) into one ``
 then the contacts are set up pair by pair, the model compiled once, and each builder's
 ``after`` step binds what it built (bodies, grippers, object models) to the compiled model.
 
-Contact settings, and why (MuJoCo's documentation, "Computation" and "XML reference"):
+Contact settings, and why (MuJoCo's documentation: "Computation",
+https://mujoco.readthedocs.io/en/latest/computation/index.html, its soft contact model,
+friction cones, solver parameters and integrators; "XML Reference",
+https://mujoco.readthedocs.io/en/latest/XMLreference.html, ``option/impratio``,
+``option/cone``, ``geom/condim``, ``contact/pair``, ``solref``/``solimp``):
 
 * **Elliptic friction cones** (``opt.cone``): the pyramidal default approximates the cone by
   its edges and lets a squeezed object slide earlier; with elliptic cones an egg held 2 cm
