@@ -244,6 +244,18 @@ def _poured_pancake(sols):
     assert 'ok' in (turns[0.1], turns[0.3]) and turns[0.9] == 'fail', turns
 
 
+TABLE_ONE_CELLS = {(f, p): ('slip' if f == 1 else 'break' if f == 11 or (f == 9 and p != 0.0)
+                             else 'ok') for f in (1, 3, 5, 7, 9, 11) for p in (-0.02, 0.0, 0.02)}
+
+
+def _other_engine(sols):
+    cells = {}
+    for e, f, p, o in _values(sols, 'E', 'F', 'P', 'O'):
+        cells.setdefault(e, {})[(f, p)] = o
+    assert set(cells) == {'pybullet', 'mujoco'}
+    assert cells['pybullet'] == cells['mujoco'] == TABLE_ONE_CELLS, cells
+
+
 def _robot_world_grasp(sols):
     assert _values(sols, 'F') == [5]
 
@@ -280,6 +292,7 @@ CHECKS = {
     'table-three': _table_three,
     'poured-pancake': _poured_pancake,
     'robot-world-grasp': _robot_world_grasp,
+    'other-engine': _other_engine,
     'robot-world-again': _robot_world_again,
 }
 # Queries of the robot's world: asked while a robot graph of the test's own publishes (a
