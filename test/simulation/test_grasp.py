@@ -135,7 +135,7 @@ def test_table_i_outcomes_do_not_depend_on_the_time_step(make_scenario, refined_
 
 def test_the_timeline_has_the_contract_shape(project, make_scenario):
     timeline = project(make_scenario(), force=5.0)
-    assert set(timeline) == {'fluents', 'events', 'quantities', 'meta'}
+    assert set(timeline) == {'fluents', 'events', 'quantities', 'meta', 'vocabulary'}
     for name, args, start, end in timeline['fluents'] + timeline['events']:
         assert isinstance(name, str) and all(isinstance(a, str) for a in args)
         assert 0.0 <= start <= end <= timeline['meta']['duration']
