@@ -217,7 +217,10 @@ def test_a_stale_frame_is_an_error_naming_it_and_its_age(ask, graph):
         del graph.frames['old_egg']
     assert r.error_kind == 'domain_error' and 'old_egg' in r.message, r.message
     age = float(re.search(r'is ([0-9.]+) s old', r.message).group(1))
-    assert 2.9 < age < 3.5, r.message
+    # At least the 3 s the graph backdates the frame by; on a loaded machine the newest
+    # message the node has may be a second or two behind the graph (CI measured 4.14 s),
+    # so the upper bound only catches a wrong clock (a stamp read as 0, or as now).
+    assert 2.9 < age < 10.0, r.message
 
 
 def test_a_frame_younger_than_max_age_is_taken(ask, graph):
