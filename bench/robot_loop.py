@@ -50,6 +50,8 @@ PLAN = ('[move_to(egg1, [0, 0, 0.10], [orientation(top), speed(0.5)]), '
         'move_by([0, 0, 0.1]), wait(0.5)]')
 OK = r'( \+ occurs(break(egg1), _, TL), \+ occurs(slip(egg1), _, TL) )'
 STANDIN = '/standin_robot'
+# Both policies want the gentlest grip that lifts the egg whole.
+PREFER = 'prefer(-max_load(egg1))'
 
 
 class StandIn:
@@ -94,28 +96,26 @@ class StandIn:
 
 
 def nominal(c: Any, forces: list[float]) -> tuple[float, float, float]:
-    """(b): the nominal choice on a fresh snapshot; (force, sense s, decide s)."""
+    """(b): the gentlest force that lifts the egg whole in the belief's nominal world, on a
+    fresh snapshot; (force, sense s, decide s)."""
     start = time.perf_counter()
     solutions = c.all(f'{SENSE}, make_projection(S, plan({PLAN.format(force="F")}), '
                       f'[(F, force, {forces})], TL), ( {OK} -> Ok = 1 ; Ok = 0 )',
                       timeout=600.0, max_solutions=1000)
     wall = time.perf_counter() - start
-    cells = {float(s['F']): int(s['Ok']) for s in solutions}
-    ok = [f for f, v in cells.items() if v]
+    ok = [float(s['F']) for s in solutions if int(s['Ok'])]
     if not ok:
         raise RuntimeError('no force ok in the nominal world')
-    bad = [forces.index(f) for f, v in cells.items() if not v]
-    force = min(ok, key=lambda f: (-min((abs(forces.index(f) - b) for b in bad),
-                                        default=len(forces)), f))
     sense = float(solutions[0]['Sense'])
-    return force, sense, wall - sense
+    return min(ok), sense, wall - sense
 
 
 def robust(c: Any, forces: list[float], seed: int) -> tuple[float, float, float, str]:
-    """(c): robust_parametrization/7 on a fresh snapshot; (force, sense s, decide s, how)."""
+    """(c): robust_parametrization/7 on a fresh snapshot, the gentlest of the equals
+    (``prefer(-max_load(egg1))``); (force, sense s, decide s, how)."""
     start = time.perf_counter()
     s = c.once(f'{SENSE}, robust_parametrization(S, plan({PLAN.format(force="F")}), '
-               f'[(F, force, {forces})], [seed({seed})], TL, {OK}, Best), '
+               f'[(F, force, {forces})], [seed({seed}), {PREFER}], TL, {OK}, Best), '
                'get_dict(p, Best, P), get_dict(low, Best, Low), get_dict(n, Best, N), '
                'get_dict(certified, Best, Cert), get_dict(projections, Best, Proj)',
                timeout=900.0)
@@ -133,10 +133,10 @@ def undesired(events: list[str]) -> bool:
 def main() -> None:
     parser = harness.arguments(__doc__, seed=1)
     parser.add_argument('--eggs', type=int, default=100)
-    parser.add_argument('--forces', default='1,2,3,4,5,6,7,8,9,10,11',
+    parser.add_argument('--forces', default='1,1.5,2,2.5,3,3.5,4,4.5,5',
                         help='grip forces [N] the policies choose among')
-    parser.add_argument('--friction', default='0.1,0.5', help="the truth's range")
-    parser.add_argument('--breaking-force', default='4,14', help="the truth's range")
+    parser.add_argument('--friction', default='0.15,0.45', help="the truth's range")
+    parser.add_argument('--breaking-force', default='7,13', help="the truth's range")
     parser.add_argument('--workers', type=int, default=2)
     args = parser.parse_args()
     forces = [float(f) for f in args.forces.split(',')]

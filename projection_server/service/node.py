@@ -20,21 +20,19 @@ import json
 import logging
 import os
 from pathlib import Path
-import signal
 import sys
 import threading
 
 from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQuery
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from std_srvs.srv import Trigger
 
 from projection_server import projection, world
-from projection_server.lifetime import die_with_parent, PARENT_ENV
+from projection_server.service.spin import run_node
 from projection_server.service import prolog_bridge
 from projection_server.service.parameters import descriptor, PARAMETERS
 from projection_server.service.project_action import ProjectActionServer
@@ -308,30 +306,11 @@ class StartupError(Exception):
 
 
 def main(args=None) -> int:
-    parent = os.environ.pop(PARENT_ENV, '')
-    # Started by a script's NodeProcess: stop, as on SIGTERM, when that script ends, even by
-    # SIGKILL (rclpy's signal handler turns SIGTERM into a shutdown like Ctrl-C's).
-    if parent.isdigit() and not die_with_parent(int(parent), signal.SIGTERM):
-        return 1
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ProjectionServerNode()
-        # One executor thread per engine, plus spares so that finish/next/ping
-        # requests are served while every engine is busy.
-        executor = MultiThreadedExecutor(num_threads=node.queries.limits.max_engines + 4)
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (prolog_bridge.BridgeError, StartupError, projection.ProjectionError) as exc:
-        print(f'projection_server: {exc}', file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    # One executor thread per engine, plus spares so that finish/next/ping requests are
+    # served while every engine is busy.
+    return run_node('projection_server', ProjectionServerNode,
+                    lambda node: node.queries.limits.max_engines + 4,
+                    (prolog_bridge.BridgeError, StartupError, projection.ProjectionError), args)
 
 
 if __name__ == '__main__':

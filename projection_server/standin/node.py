@@ -26,8 +26,6 @@ response). Example::
 from __future__ import annotations
 
 import json
-import os
-import signal
 import sys
 import time
 from typing import Any
@@ -37,7 +35,6 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 import rclpy
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -47,7 +44,7 @@ from tf2_msgs.msg import TFMessage
 from projection_interfaces.action import ExecutePlan
 from projection_interfaces.srv import ResetWorld
 from projection_server.errors import ErrorKind, ProjectionError
-from projection_server.lifetime import die_with_parent, PARENT_ENV
+from projection_server.service.spin import run_node
 from projection_server.standin.plan_text import parse_plan
 from projection_server.standin.world import (Outcome, ROBOT_BASE, StandinConfig,
                                              StandinError, StandinWorld, WorldState,
@@ -254,27 +251,8 @@ def _transform(stamp: Any, parent: str, child: str, xyz: Any, quaternion: Any
 
 
 def main(args=None) -> int:
-    parent = os.environ.pop(PARENT_ENV, '')
-    # Started by a script's NodeProcess: stop when that script ends, even by SIGKILL.
-    if parent.isdigit() and not die_with_parent(int(parent), signal.SIGTERM):
-        return 1
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = StandinRobotNode()
-        executor = MultiThreadedExecutor(num_threads=4)
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ProjectionError as exc:
-        print(f'projection_standin_robot: {exc}', file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node('projection_standin_robot', StandinRobotNode, lambda node: 4,
+                    (ProjectionError,), args)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,51 @@
+"""A ROS 2 program's ``main``: start a node, spin it, end cleanly, whoever started it.
+
+The node server and the stand-in robot both run as console scripts, by hand or from a
+script's :class:`~projection_server.client.launcher.NodeProcess`; they end alike.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from typing import Callable, TypeVar
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+
+from projection_server.lifetime import die_with_parent, PARENT_ENV
+
+__all__ = ['run_node']
+
+N = TypeVar('N', bound=Node)
+
+
+def run_node(program: str, make: Callable[[], N], threads: Callable[[N], int],
+             fatal: tuple[type[BaseException], ...], args=None) -> int:
+    """Spin the node ``make()`` returns on a multi-threaded executor of ``threads(node)``
+    threads until Ctrl-C, SIGTERM or the starting script's end; 1 after an error of
+    ``fatal`` (printed as ``program: message``), else 0."""
+    parent = os.environ.pop(PARENT_ENV, '')
+    # Started by a script's NodeProcess: stop, as on SIGTERM, when that script ends, even by
+    # SIGKILL (rclpy's signal handler turns SIGTERM into a shutdown like Ctrl-C's).
+    if parent.isdigit() and not die_with_parent(int(parent), signal.SIGTERM):
+        return 1
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make()
+        executor = MultiThreadedExecutor(num_threads=threads(node))
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except fatal as exc:
+        print(f'{program}: {exc}', file=sys.stderr)
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
