@@ -11,12 +11,12 @@ no topic) and ``projection_server``; this program talks to both over ROS 2 only.
 
 1. sense: ``robot_world/2`` reads the stand-in's ``/robot_description``, ``/joint_states``
    and ``/tf`` (the arm where it stands, the egg where perception put it) into a scenario
-   whose egg has the program's *belief*: friction uniform(0.2, 0.4), breaking force
-   normal(10, 1.5), the README's;
+   whose egg has the program's *belief*: friction uniform(0.2, 0.4) and breaking force
+   normal(10, 1.5), the README's, and mass uniform(0.05, 0.07) kg (an egg's size class);
 2. decide, on that snapshot, the gentlest grip force of ``--forces`` (1-5 N in 0.5 N) that
    lifts the egg whole (no slip, no break) in a top grasp and lift: an egg program squeezes
    no harder than it must. (b) nominal: the least force that does so in the belief's
-   nominal world (friction 0.3, breaking force 10 N); (c) belief:
+   nominal world (friction 0.3, breaking force 10 N, 60 g); (c) belief:
    ``robust_parametrization/7`` over the same forces with ``prefer(-max_load(egg1))`` (the
    gentlest of the forces as probable as the best; its other defaults, seed i);
 3. act: each choice executed on the same egg (the stand-in reset with seed i before each),
@@ -25,7 +25,8 @@ no topic) and ``projection_server``; this program talks to both over ROS 2 only.
 
 The stand-in's truth is wider than the belief (``--friction``, ``--breaking-force``; by
 default friction uniform(0.15, 0.45) against the belief's (0.2, 0.4), breaking force
-uniform(7, 13), the stand-in's mass 50-70 g; none of it is told to the program). Why the
+uniform(7, 13), mass uniform(0.05, 0.07) kg, the stand-in's; none of it is told to the
+program). Why the
 choices part: the pads hold the egg through the lift iff 2 mu F >= m (g + a), so the least
 force that holds the nominal egg slips every egg of less friction, while the belief's
 choice holds down to about its lowest friction. Reported: the undesired
@@ -46,7 +47,8 @@ from typing import Any
 import harness
 from closed_loop import mcnemar, wilson
 
-BELIEF = 'friction: uniform(0.2, 0.4), breaking_force: normal(10, 1.5)'
+BELIEF = ('friction: uniform(0.2, 0.4), breaking_force: normal(10, 1.5), '
+          'mass: uniform(0.05, 0.07)')
 SENSE = ('get_time(T0), robot_world(S, [entities([kitchen_env, entity(egg1, egg, '
          f'_{{frame: egg_1, {BELIEF}}})])]), get_time(T1), Sense is T1 - T0')
 PLAN = ('[move_to(egg1, [0, 0, 0.10], [orientation(top), speed(0.5)]), '
