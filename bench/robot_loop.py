@@ -147,7 +147,12 @@ def main() -> None:
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--options', default='',
                         help="more options of (c)'s robust_parametrization/7, e.g. 'risk(0.1)'")
+    parser.add_argument('--report', metavar='TRIALS_JSON',
+                        help="only report the trials of an earlier run's trials.json")
     args = parser.parse_args()
+    if args.report:
+        report(json.loads(Path(args.report).read_text()))
+        return
     forces = [float(f) for f in args.forces.split(',')]
     harness.ros_domain(200)
     import rclpy
@@ -187,6 +192,8 @@ def main() -> None:
                                  'events': events, 'sense': sense, 'decide': decide,
                                  'act': act}
                 trials.append(row)
+                # Kept as it goes: a run stopped early still has every trial made.
+                (tmp / 'trials.json').write_text(json.dumps(trials, indent=1))
                 b, cc = row['b'], row['c']
                 print(f'{seed:4d} {truth["friction"]:8.3f} {truth["breaking_force"]:7.2f} | '
                       f'{b["force"]:5.1f} {"BAD" if b["undesired"] else "ok":>4} '
@@ -198,7 +205,6 @@ def main() -> None:
         node.destroy_node()
         rclpy.try_shutdown()
     report(trials)
-    (tmp / 'trials.json').write_text(json.dumps(trials, indent=1))
     print(f'\ntrials: {tmp / "trials.json"}')
 
 
