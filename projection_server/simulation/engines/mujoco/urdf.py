@@ -38,6 +38,7 @@ to its mass, as PyBullet computes it. Its joints are passive.
 from __future__ import annotations
 
 import functools
+import math
 import os
 from pathlib import Path
 from typing import Any, Sequence, TYPE_CHECKING
@@ -68,8 +69,9 @@ def _cannot(entity: str, what: str) -> ProjectionError:
 
 
 # --- URDF and mesh files ------------------------------------------------------------------------
-def load_urdf(path: str, entity: str) -> Any:
-    """The ``MjSpec`` of the URDF at ``path`` (see the module doc)."""
+def load_urdf(path: str, entity: str, scale: float = 1.0) -> Any:
+    """The ``MjSpec`` of the URDF at ``path`` (see the module doc), its lengths times
+    ``scale`` (PyBullet's ``globalScaling``: its masses as given)."""
     try:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as exc:
@@ -87,6 +89,8 @@ def load_urdf(path: str, entity: str) -> Any:
                                   f'{entity}: the mesh {name!r} of {Path(path).name} is not '
                                   'a file inside the asset directories')
         mesh.set('filename', real)
+    if scale != 1.0:
+        _scale(root, scale)
     for old in root.findall('mujoco'):
         root.remove(old)
     ET.SubElement(ET.SubElement(root, 'mujoco'), 'compiler', discardvisual='true',
@@ -98,6 +102,28 @@ def load_urdf(path: str, entity: str) -> Any:
                               f'{entity}: MuJoCo cannot compile {path}: {exc}') from None
     _split_meshes(spec)
     return spec
+
+
+def _scale(root: Any, scale: float) -> None:
+    """The URDF's lengths times ``scale``: origins, shapes, prismatic limits."""
+    def times(element: Any, key: str, default: str | None = None) -> None:
+        value = element.get(key, default)
+        if value is not None:
+            element.set(key, ' '.join(repr(float(v) * scale) for v in value.split()))
+    for origin in root.iter('origin'):
+        times(origin, 'xyz')
+    for box in root.iter('box'):
+        times(box, 'size')
+    for shape in (*root.iter('cylinder'), *root.iter('sphere'), *root.iter('capsule')):
+        times(shape, 'radius')
+        times(shape, 'length')
+    for mesh in root.iter('mesh'):
+        times(mesh, 'scale', '1 1 1')
+    for joint in root.iter('joint'):
+        limit = joint.find('limit')
+        if joint.get('type') == 'prismatic' and limit is not None:
+            times(limit, 'lower')
+            times(limit, 'upper')
 
 
 def obj_parts(path: str) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -432,10 +458,7 @@ def rigid_urdf(world: WorldSpec, entity: Entity) -> None:
     from projection_server.simulation.objects.rigid_object import COLOR
 
     p = entity.properties
-    if float(p.get('scale', 1.0)) != 1.0:
-        raise _cannot(entity.name, f'a URDF at scale {p["scale"]} (it builds URDFs at their '
-                      'own size)')
-    child = load_urdf(p['file'], entity.name)
+    child = load_urdf(p['file'], entity.name, float(p.get('scale', 1.0)))
     bodies = [child.worldbody.first_body(), *_subtree(child.worldbody.first_body())]
     urdf_masses = [float(b.mass) for b in bodies]
     mass = p.get('mass')
@@ -450,6 +473,7 @@ def rigid_urdf(world: WorldSpec, entity: Entity) -> None:
         # Each link's inertia that of its collision shapes at its mass (PyBullet's).
         probe = child.copy()
         probe.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE
+        probe.compiler.discardvisual = False   # there are none: the URDF's were dropped
         compiled = probe.compile()
         for body, m in zip(bodies, masses):
             i = compiled.body(body.name).id
@@ -460,6 +484,7 @@ def rigid_urdf(world: WorldSpec, entity: Entity) -> None:
                 continue
             body.mass = m
             body.inertia = (compiled.body_inertia[i] * m / shape_mass).tolist()
+            body.fullinertia = [math.nan] * 6   # the URDF's, replaced
             body.iquat = compiled.body_iquat[i].tolist()
             body.explicitinertial = True
     base = _attach(world, child, entity)
@@ -470,11 +495,12 @@ def rigid_urdf(world: WorldSpec, entity: Entity) -> None:
         for geom in body.geoms:
             world.adopt(geom, entity.name, kind, p['friction'])
     prefix = f'{entity.name}/'
+    names = [b.name for b in _subtree(base)]   # the spec is gone once compiled
 
     def after(physics: MujocoPhysics) -> None:
         model = physics.model
         root = model.body(entity.name).id
-        ids = {model.body(b.name).id: b.name[len(prefix):] for b in _subtree(base)}
+        ids = {model.body(name).id: name[len(prefix):] for name in names}
         physics.add_body(Body(entity.name, entity.cls, root, static, None,
                               links=dict(sorted(ids.items())),
                               link_shapes=_link_boxes(physics, root, list(ids), COLOR)))
