@@ -1,8 +1,9 @@
 """URDF arms and mesh and URDF objects on the second engine, through the live node: the
 Panda's top grasp and lift of the egg (bench/robot_loop.py's plan) slips, lifts and breaks
 alike on PyBullet and MuJoCo, at a 4x finer step too; a mesh and URDF objects rest on the
-table where PyBullet puts them and a push moves them as far; what MuJoCo does not build (a
-linkage gripper, an SDF robot) is an error naming the robot and the engine."""
+table where PyBullet puts them and a push moves them as far; the xArm's linkage gripper
+slips, lifts and breaks alike on both; an SDF robot, which MuJoCo does not build, is an
+error naming the robot and the engine."""
 
 from __future__ import annotations
 
@@ -111,22 +112,37 @@ def test_a_mesh_or_urdf_object_is_pushed_as_far_on_both_engines(call, thing, bac
         moved
 
 
-@pytest.mark.parametrize('robot, what', [
-    ('''entity(xarm1, robot, _{model: urdf, file: "xarm/xarm6_with_gripper.urdf",
-        tool_link: xarm_gripper_base_link, tool_offset: [0, 0, 0.154],
-        finger_joints: [drive_joint], pad_links: [left_finger, right_finger], max_force: 30,
-        pose: _{xyz: [-0.68, 0, 0.72]}})''', 'xarm1'),
-    ('''entity(kuka1, robot, _{model: urdf, file: "kuka_iiwa/kuka_with_gripper2.sdf",
+XARM = '''entity(xarm1, robot, _{model: urdf, file: "xarm/xarm6_with_gripper.urdf",
+    tool_link: xarm_gripper_base_link, tool_offset: [0, 0, 0.154],
+    finger_joints: [drive_joint], pad_links: [left_finger, right_finger], max_force: 30,
+    pose: _{xyz: [-0.68, 0, 0.72]}})'''
+# test_grippers_service's grasp: the xArm's fingertips reach 2.3 cm past its pads
+XARM_PLAN = PLAN.replace('move_to(egg1, [0, 0, 0]', 'move_to(egg1, [0, 0, 0.01]')
+
+
+@pytest.mark.parametrize('physics', ['', ', rate_hz: 960'])
+def test_a_linkage_gripper_slips_lifts_and_breaks_alike_on_both_engines(call, physics):
+    r, sols = ask(call, f'''
+        create_scenario(S), add_to_scenario(S, [kitchen_env, egg1, {XARM}]),
+        member(E, [pybullet, mujoco]),
+        make_projection(S, {XARM_PLAN}, [(F, force, [1, 5, 20])],
+                        [physics(_{{engine: E{physics}}})], TL), {OUTCOME}''')
+    assert r.ok, (r.error_kind, r.message)
+    got = {(s['E'], s['F']): s['O'] for s in sols}
+    assert got == {(e, f): o for e in ENGINES
+                   for f, o in ((1, 'slip'), (5, 'lifted'), (20, 'break'))}, got
+
+
+def test_an_sdf_robot_on_mujoco_is_an_error_naming_it_and_the_engine(call):
+    kuka = '''entity(kuka1, robot, _{model: urdf, file: "kuka_iiwa/kuka_with_gripper2.sdf",
         tool_link: lbr_iiwa_link_7, tool_offset: [0, 0.022, 0.276], tool_rpy: [0, 0, 1.5708],
         finger_joints: [base_left_finger_joint, base_right_finger_joint],
         finger_open: [-0.3, 0.3], finger_closed: [0, 0], max_force: 30,
-        home: [0, 0.41, 0, -1.59, 0, 1.14, 0], pose: _{xyz: [-0.8, 0, 0.72]}})''', 'kuka1'),
-])
-def test_a_linkage_gripper_or_an_sdf_robot_on_mujoco_is_an_error_naming_it(call, robot, what):
-    r, _ = ask(call, f'''create_scenario(S), add_to_scenario(S, [kitchen_env, egg1, {robot}]),
+        home: [0, 0.41, 0, -1.59, 0, 1.14, 0], pose: _{xyz: [-0.8, 0, 0.72]}})'''
+    r, _ = ask(call, f'''create_scenario(S), add_to_scenario(S, [kitchen_env, egg1, {kuka}]),
         make_projection(S, {PLAN}, [(F, force, [5])], [physics(_{{engine: mujoco}})], TL)''',
                mode=Q.ONCE)
     assert not r.ok and r.error_kind == 'projection_error', (r.error_kind, r.message)
-    assert what in r.message and 'mujoco' in r.message, r.message
+    assert 'kuka1' in r.message and 'mujoco' in r.message, r.message
     r, _ = ask(call, 'X = 1')   # the node keeps serving
     assert r.ok

@@ -20,10 +20,13 @@ joint (:func:`~.builders.add_drive`) is set its speed every step, and pulls the 
 through a tendon whose friction loss is the joint's force limit (its URDF effort; a
 finger's at most the commanded grip force, at most the robot's ``max_force``). An arm
 joint's drive runs at ``TRACKING_RATE`` times the joint's error (PyBullet's position gain
-of the same rate). Mimic joints are MuJoCo's joint equalities, as its URDF compiler makes
-them. The arm does not collide with itself (no pairs of one entity's geoms); its base link,
-fixed, collides with what moves only. Revolute (linkage) fingers and SDF robots are not
-built: an error naming the robot and the engine.
+of the same rate). Revolute fingers (a linkage) are commanded as
+:class:`~projection_server.simulation.robots.linkage.LinkageGripper` commands them, from
+the same opening table (:class:`MujocoLinkageGripper`). Mimic joints are MuJoCo's joint
+equalities, as its URDF compiler makes them, as stiff as the drives (with MuJoCo's default
+softness a linkage's fingers turn out of parallel under a 5 N grip). The arm does not
+collide with itself (no pairs of one entity's geoms); its base link, fixed, collides with
+what moves only. An SDF robot is not built: an error naming the robot and the engine.
 
 **A mesh** (:func:`rigid_mesh`) collides as the parts of its convex decomposition (the
 V-HACD decomposition PyBullet's moving mesh uses, :func:`~projection_server.simulation.
@@ -51,7 +54,8 @@ from projection_server import assets
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.engines.mujoco.builders import (_euler_quat, _register,
                                                                   _release, _subtree,
-                                                                  add_drive)
+                                                                  add_drive, DRIVE_SOLIMP,
+                                                                  DRIVE_SOLREF)
 from projection_server.simulation.physics import Body, Shape
 from projection_server.simulation.robots.manipulator import _kinematics, Arm
 
@@ -60,7 +64,8 @@ if TYPE_CHECKING:
     from projection_server.simulation.engines.mujoco.world import WorldSpec
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['MujocoArm', 'load_urdf', 'rigid_mesh', 'rigid_urdf', 'urdf_robot']
+__all__ = ['MujocoArm', 'MujocoLinkageGripper', 'load_urdf', 'obj_parts', 'rigid_mesh',
+           'rigid_urdf', 'urdf_robot']
 
 
 def _cannot(entity: str, what: str) -> ProjectionError:
@@ -93,8 +98,11 @@ def load_urdf(path: str, entity: str, scale: float = 1.0) -> Any:
         _scale(root, scale)
     for old in root.findall('mujoco'):
         root.remove(old)
+    # balanceinertia: a URDF's inertia that no body has (A + B < C) made one that a body
+    # has (PyBullet takes its links' inertia from their collision shapes)
     ET.SubElement(ET.SubElement(root, 'mujoco'), 'compiler', discardvisual='true',
-                  fusestatic='false', strippath='false', meshdir=str(Path(path).parent))
+                  fusestatic='false', strippath='false', balanceinertia='true',
+                  meshdir=str(Path(path).parent))
     try:
         spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding='unicode'))
     except ValueError as exc:   # MuJoCo's parser's error
@@ -218,8 +226,8 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
     """The ``urdf`` robot model on MuJoCo (see the module doc)."""
     import pybullet
 
-    from projection_server.simulation.robots.urdf_arm import (_fact, _middle, _rest,
-                                                              HOLD_FORCE, FRICTION,
+    from projection_server.simulation.robots.urdf_arm import (_fact, _finger_kind, _middle,
+                                                              _rest, HOLD_FORCE, FRICTION,
                                                               mimic_joints, TRACKING_RATE)
 
     p = entity.properties
@@ -244,14 +252,10 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
         if unknown:
             raise _fact(entity.name, key, f'{file} has no {what} {", ".join(unknown)}')
     fingers = [joints[n] for n in p['finger_joints']]
-    kinds = {infos[j].kind for j in fingers}
-    if kinds != {pybullet.JOINT_PRISMATIC}:
-        if kinds == {pybullet.JOINT_REVOLUTE}:
-            raise _cannot(entity.name, 'revolute (linkage) finger joints '
-                          f'({", ".join(p["finger_joints"])}); it builds prismatic fingers')
-        raise _fact(entity.name, 'finger_joints', 'they must be all prismatic or all revolute')
+    kinds = [infos[j].kind for j in fingers]
+    revolute = _finger_kind(pybullet, entity.name, p['finger_joints'], kinds)
     for key in ('finger_open', 'finger_closed'):
-        if key in p:
+        if key in p and not revolute:
             raise _fact(entity.name, key, 'the finger joints are prismatic: open is their '
                         'upper limit, closed 0')
     tool = link_index[p['tool_link']]
@@ -286,7 +290,13 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
         home = [_middle(row[j]) for j in arm]
     home = [given.get(infos[j].name, value) for j, value in zip(arm, home)]
     start = {}
-    for finger in fingers:   # open, or as given; a finger that mimics another follows it
+    linkage = None
+    if revolute:   # the fingers start open
+        mimic_ids = {joints[c]: (joints[parent], m, o) for c, (parent, m, o) in mimic.items()
+                     if c in joints and parent in joints}
+        linkage = _linkage(entity, infos, fingers, mimic_ids, held)
+        start = {j: v for j, v in linkage['start'].items() if j not in held}
+    for finger in [] if revolute else fingers:   # open, or as given; a mimic follows
         name = infos[finger].name
         parent, multiplier, offset = mimic.get(name, (None, 1.0, 0.0))
         start[finger] = (given[name] if name in given else
@@ -294,6 +304,8 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
                          infos[finger].upper)
 
     child = load_urdf(path, entity.name)
+    for coupling in child.equalities:   # mimic joints: geared, as stiff as the drives
+        coupling.solref, coupling.solimp = list(DRIVE_SOLREF), list(DRIVE_SOLIMP)
     base = _attach(world, child, entity)
     prefix = f'{entity.name}/'
     for geom in base.geoms:   # the base is fixed: it collides with what moves only
@@ -306,7 +318,8 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
     servos = [*arm, *held]
     forces = {j: infos[j].effort for j in arm} | {j: HOLD_FORCE for j in held}
     for j in [*servos, *fingers]:
-        add_drive(world, prefix + infos[j].name, forces.get(j, infos[j].effort))
+        add_drive(world, prefix + infos[j].name,
+                  forces.get(j, max(infos[j].effort, 0.0) or HOLD_FORCE))
     targets = dict(zip(arm, home)) | held
     orientation = tuple(world_quaternion(entity.pose.rpy))
 
@@ -333,17 +346,27 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
                     data.qpos[model.jnt_qposadr[joint[joints[parent]]]]) + offset)
         physics.add_body(Body(entity.name, entity.cls, root, False, None,
                               links=dict(sorted(link_ids.items())), driven=True, urdf=path))
-        pads = p.get('pad_links') or [infos[j].link for j in fingers]
-        hand = MujocoGripper(
-            physics, entity.name, root,
-            {'fingers': [joint[j] for j in fingers], 'drives': [drive[j] for j in fingers],
-             'tendons': [model.tendon(prefix + infos[j].name + '/drive').id
-                         for j in fingers]},
-            {}, [], max_joint_force=max(infos[j].effort for j in fingers),
-            max_force=p['max_force'], max_opening=sum(infos[j].upper for j in fingers),
-            tracking_rate=TRACKING_RATE, finger_links=pads)
-        given_fingers = any(infos[j].name in given for j in fingers)
-        hand.open(sum(start.values()) if given_fingers else hand.max_opening, speed=0.1)
+        finger_joints = {'fingers': [joint[j] for j in fingers],
+                         'drives': [drive[j] for j in fingers],
+                         'tendons': [model.tendon(prefix + infos[j].name + '/drive').id
+                                     for j in fingers]}
+        if linkage is not None:
+            carried = [model.body(prefix + infos[j].link).id for j in linkage['carried']]
+            hand = MujocoLinkageGripper(
+                physics, entity.name, root, finger_joints, linkage['open'],
+                linkage['closed'], linkage['table'],
+                [max(infos[j].effort, 0.0) or HOLD_FORCE for j in fingers], p['max_force'],
+                TRACKING_RATE, [infos[j].link for j in linkage['pads']], carried)
+            hand.open(hand.max_opening, speed=0.1)
+        else:
+            pads = p.get('pad_links') or [infos[j].link for j in fingers]
+            hand = MujocoGripper(
+                physics, entity.name, root, finger_joints, {}, [],
+                max_joint_force=max(infos[j].effort for j in fingers),
+                max_force=p['max_force'], max_opening=sum(infos[j].upper for j in fingers),
+                tracking_rate=TRACKING_RATE, finger_links=pads)
+            given_fingers = any(infos[j].name in given for j in fingers)
+            hand.open(sum(start.values()) if given_fingers else hand.max_opening, speed=0.1)
         physics.grippers[entity.name] = hand
         tool_orientation = world_quaternion(p.get('tool_rpy', (0.0, 0.0, 0.0)))
         qpos = {j: int(model.jnt_qposadr[i]) for j, i in joint.items()}
@@ -355,6 +378,188 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
         manipulator.servo(*manipulator.tool_pose())
         physics.manipulators[entity.name] = manipulator
     world.after.append(after)
+
+
+def _linkage(entity: Entity, infos: tuple[_Joint, ...], fingers: list[int],
+             mimics: dict[int, tuple[int, float, float]], held: dict[int, float]
+             ) -> dict[str, Any]:
+    """Revolute fingers' facts as the PyBullet model finds them (urdf_arm's checks and
+    helpers, on a copy of the robot at its pose in the kinematic solvers' client): the
+    joints' open and closed values, the pads, the opening table (the same table as
+    PyBullet's, of the same key), the links the drive carries, and the joints' values
+    open."""
+    from projection_server.simulation.robots.kinematics import _client, load_robot
+    from projection_server.simulation.robots.linkage import (cached_opening_table,
+                                                             finger_values, gap)
+    from projection_server.simulation.robots.urdf_arm import _fact, _subtree, MIN_STROKE
+
+    p = entity.properties
+    c = _client()
+    body = load_robot(c, p['file'], entity.pose.xyz, world_quaternion(entity.pose.rpy))
+    try:
+        if 'finger_open' in p:
+            open_values, closed_values = list(p['finger_open']), list(p['finger_closed'])
+        else:
+            bad = [infos[j].name for j in fingers
+                   if not 0 < infos[j].upper - infos[j].lower <= 2 * math.pi]
+            if bad:
+                raise _fact(entity.name, 'finger_open', 'give finger_open and finger_closed: '
+                            f'the limits of {", ".join(bad)} in {Path(p["file"]).name} are '
+                            "not a finger's range (none, or wider than a turn)")
+            open_values = [infos[j].upper for j in fingers]
+            closed_values = [infos[j].lower for j in fingers]
+        names = {j.link: i for i, j in enumerate(infos)}
+        if p.get('pad_links') is None:
+            pads = _subtree(c, body, fingers, leaves=True)
+            if len(pads) < 2:
+                raise _fact(entity.name, 'pad_links', 'name the links that touch what the '
+                            'gripper holds: the finger joints end in '
+                            f'{", ".join(infos[j].link for j in pads)} alone')
+        else:
+            pads = [names[n] for n in p['pad_links']]
+        if 'finger_open' not in p:
+            ends = [gap(c, body, finger_values(fingers, open_values, closed_values, mimics,
+                                               held, u), pads) for u in (0.0, 1.0)]
+            if ends[1] < ends[0]:
+                open_values, closed_values = closed_values, open_values
+        key = (p['file'], tuple(fingers), tuple(open_values), tuple(closed_values),
+               tuple(sorted(mimics.items())), tuple(sorted(held.items())), tuple(pads),
+               tuple(entity.pose.xyz), tuple(entity.pose.rpy))
+        table = cached_opening_table(key, c, body, fingers, open_values, closed_values,
+                                     mimics, held, pads)
+        if table[1][-1] - table[1][0] < MIN_STROKE:
+            raise _fact(entity.name, 'finger_open', 'the pads are '
+                        f'{table[1][0] * 1000:.1f} mm apart closed and '
+                        f'{table[1][-1] * 1000:.1f} mm open: give finger_open, '
+                        'finger_closed and pad_links')
+        carried = _subtree(c, body, [*fingers, *mimics])
+    finally:
+        c.removeBody(body)
+    return {'open': open_values, 'closed': closed_values, 'pads': pads, 'table': table,
+            'carried': carried,
+            'start': finger_values(fingers, open_values, closed_values, mimics, held, 1.0)}
+
+
+class MujocoLinkageGripper:
+    """:class:`~projection_server.simulation.robots.linkage.LinkageGripper` on MuJoCo: the
+    same table, levers and commands, each finger joint moved through its drive (the
+    tendon's friction loss its torque limit: closing, the force asked for times the
+    joint's lever, set anew as the fingers move; opening, its effort); closing and holding,
+    the fingers' links' weight carried by an upward force at their centres of mass."""
+
+    def __init__(self, physics: MujocoPhysics, name: str, body_id: int,
+                 joints: dict[str, list[int]], open_values: Sequence[float],
+                 closed_values: Sequence[float], table: tuple[Sequence[float], Sequence[float]],
+                 torques: Sequence[float], max_force: float, rate: float,
+                 finger_links: Sequence[str], carried: Sequence[int]):
+        from projection_server.simulation.robots.linkage import LEVER_STEP
+
+        self.name, self.body_id, self.pads = name, body_id, []
+        self._physics = physics
+        model = physics.model
+        self._fingers = tuple(joints['fingers'])
+        self._finger_links = list(finger_links)
+        self._qpos = np.array([model.jnt_qposadr[j] for j in joints['fingers']])
+        self._drive_dof = np.array([model.jnt_dofadr[j] for j in joints['drives']])
+        self._tendons = np.array(joints['tendons'])
+        self._open = np.asarray(open_values, float)
+        self._closed = np.asarray(closed_values, float)
+        self._span = self._open - self._closed
+        self._u, self._openings = np.asarray(table[0], float), np.asarray(table[1], float)
+        slopes = np.diff(self._openings) / np.diff(self._u)
+        self._slope_u = (self._u[:-1] + self._u[1:]) / 2
+        self._slopes = np.maximum(np.abs(slopes), 1e-9)
+        self._mean_slope = max((self._openings[-1] - self._openings[0])
+                               / (self._u[-1] - self._u[0]), 1e-9)
+        self._torques = np.asarray(torques, float)
+        self.max_force = max_force
+        self.max_opening = float(self._openings[-1])
+        self._rate = rate
+        self._lever_step = LEVER_STEP
+        self.command, self.commanded_force = 'open', 0.0
+        self._speed = 0.0
+        self._target = self._open.copy()
+        self._limit = np.full(len(self._fingers), math.inf)
+        self._set_at = 1.0
+        self._carried = np.asarray(carried, int)
+        g = -float(model.opt.gravity[2])
+        self._lift = np.array([[0.0, 0.0, float(model.body_mass[b]) * g] for b in carried])
+        physics.controllers.append(self._control)
+
+    @property
+    def finger_links(self) -> list[str]:
+        return self._finger_links
+
+    @property
+    def fingers(self) -> tuple[int, ...]:
+        return self._fingers
+
+    def position(self) -> float:
+        q = self._physics.data.qpos[self._qpos]
+        return float(np.mean((q - self._closed) / self._span))
+
+    def levers(self, u: float) -> np.ndarray:
+        from projection_server.simulation.robots.linkage import MIN_LEVER
+
+        slope = float(np.interp(u, self._slope_u, self._slopes))
+        return np.maximum(slope / (len(self._fingers) * np.abs(self._span)), MIN_LEVER)
+
+    def _control(self) -> None:
+        data = self._physics.data
+        if self.command == 'close':
+            u = self.position()
+            if abs(u - self._set_at) >= self._lever_step:
+                self._set_closing(u)
+            speed = np.full(len(self._fingers), -2 * self._speed / self._mean_slope) * self._span
+        else:
+            error = self._target - data.qpos[self._qpos]
+            speed = np.clip(self._rate * error, -self._limit, self._limit)
+        data.qvel[self._drive_dof] = speed
+
+    def _set_closing(self, u: float) -> None:
+        self._physics.model.tendon_frictionloss[self._tendons] = (self.commanded_force
+                                                                  * self.levers(u))
+        self._set_at = u
+
+    def close(self, force: float, speed: float) -> None:
+        force = min(force, self.max_force)
+        self.command, self.commanded_force = 'close', force
+        self._speed = speed
+        self._set_closing(self.position())
+        if len(self._carried):
+            self._physics.data.xfrc_applied[self._carried, :3] = self._lift
+
+    def open(self, opening: float, speed: float) -> None:
+        self.command, self.commanded_force = 'open', 0.0
+        u = float(np.interp(min(opening, self.max_opening), self._openings, self._u))
+        self._target = self._closed + u * self._span
+        self._limit = 2 * speed / self._mean_slope * np.abs(self._span)
+        self._physics.model.tendon_frictionloss[self._tendons] = self._torques
+        if len(self._carried):
+            self._physics.data.xfrc_applied[self._carried, :3] = 0.0
+
+    def opening(self) -> float:
+        return self.state()[0]
+
+    def measured_force(self) -> float:
+        return self.state()[1]
+
+    def state(self) -> tuple[float, float]:
+        """``(opening, measured force)``: the opening at the fingers' position; the mean
+        pad force of the drives' tendons' friction through their levers."""
+        data = self._physics.data
+        u = self.position()
+        first, last = data.ne, data.ne + data.nf
+        ids, forces = data.efc_id[first:last].tolist(), data.efc_force[first:last].tolist()
+        kinds = data.efc_type[first:last].tolist()
+        tendon = mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON
+        torque = {i: abs(f) for i, f, k in zip(ids, forces, kinds) if k == tendon}
+        torques = np.array([torque.get(int(t), 0.0) for t in self._tendons])
+        return (float(np.interp(u, self._u, self._openings)),
+                float(np.mean(torques / self.levers(u))))
+
+    def pad_faces(self) -> list[Any]:
+        return []
 
 
 def world_quaternion(rpy: Sequence[float]) -> tuple[float, float, float, float]:
