@@ -179,8 +179,7 @@ def _split_meshes(spec: Any) -> None:
                                  userface=faces.ravel().tolist())
             for geom in users:
                 geom.parent.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=part.name,
-                                     pos=list(geom.pos), quat=list(geom.quat),
-                                     contype=0, conaffinity=0)
+                                     pos=list(geom.pos), quat=list(geom.quat))
         for geom in users:
             spec.delete(geom)
         spec.delete(mesh)
@@ -213,11 +212,15 @@ def _bullet_joints(path: str) -> tuple[_Joint, ...]:
     from projection_server.simulation.robots.kinematics import _client, load_robot
 
     client = _client()
-    body = load_robot(client, path, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    try:
+        body = load_robot(client, path, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    except Exception:   # pybullet.error: PyBullet cannot load it either
+        body = -1
     if body < 0:
         raise ValueError(f'cannot load {path}')
     try:
-        return tuple(_Joint(client.getJointInfo(body, j)) for j in range(client.getNumJoints(body)))
+        return tuple(_Joint(client.getJointInfo(body, j))
+                     for j in range(client.getNumJoints(body)))
     finally:
         client.removeBody(body)
 
