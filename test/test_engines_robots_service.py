@@ -146,3 +146,39 @@ def test_an_sdf_robot_on_mujoco_is_an_error_naming_it_and_the_engine(call):
     assert 'kuka1' in r.message and 'mujoco' in r.message, r.message
     r, _ = ask(call, 'X = 1')   # the node keeps serving
     assert r.ok
+
+
+def frames_and_topics(path):
+    """The bag's topics (with types) and the (parent, child) frames its /tf and /tf_static
+    name."""
+    from pathlib import Path
+
+    from rosbags.highlevel import AnyReader
+
+    from projection_server.bags import typestore
+    with AnyReader([Path(path)], default_typestore=typestore()) as reader:
+        topics = {(c.topic, c.msgtype) for c in reader.connections}
+        frames = set()
+        tf = [c for c in reader.connections if c.topic in ('/tf', '/tf_static')]
+        for c, _, raw in reader.messages(tf):
+            message = reader.deserialize(raw, c.msgtype)
+            frames |= {(t.header.frame_id, t.child_frame_id) for t in message.transforms}
+    return topics, frames
+
+
+def test_a_panda_and_a_urdf_object_log_the_same_topics_and_frames_on_both_engines(call):
+    r, sols = ask(call, f'''
+        create_scenario(S), add_to_scenario(S, [kitchen_env, panda_robot, egg1, mug1]),
+        member(E, [pybullet, mujoco]),
+        simulate(S, {PLAN}, [(F, force, [5])], [physics(_{{engine: E}})], B)''')
+    assert r.ok, (r.error_kind, r.message)
+    logs = {s['E']: frames_and_topics(s['B']) for s in sols}
+    (topics_b, frames_b), (topics_m, frames_m) = logs['pybullet'], logs['mujoco']
+    assert topics_b == topics_m
+    assert frames_b == frames_m
+    # every link of the arm under its parent, as the URDF chains them
+    assert {('world', 'panda_robot'), ('world', 'mug1'), ('world', 'egg1'),
+            ('panda_robot', 'panda_robot/panda_link1'),
+            ('panda_robot/panda_link8', 'panda_robot/panda_hand'),
+            ('panda_robot/panda_hand', 'panda_robot/panda_leftfinger'),
+            ('panda_robot/panda_hand', 'panda_robot/panda_rightfinger')} <= frames_m, frames_m
