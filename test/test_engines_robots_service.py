@@ -95,14 +95,15 @@ PUSH = '''create_scenario(S), add_to_scenario(S, [kitchen_env, pr2_robot, {x}]),
                              move_to({x}, [{back}, 0, 0.03], [orientation(side(0)),
                                                                 speed(1.0)]),
                              move_by([0.15, 0, 0], [speed(0.1)]), move_by([-0.1, 0, 0])]),
-                    [], [physics(_{{engine: E}})], TL),
+                    [], [physics(_{{engine: E{physics}}})], TL),
     quantity(displacement({x}), D, TL), quantity(final_pose({x}), [[X, Y, _], _], TL)'''
 
 
+@pytest.mark.parametrize('physics', ['', ', rate_hz: 960'])
 @pytest.mark.parametrize('thing, back', [('glass1', -0.12), ('mug1', -0.12),
                                          ('tray1', -0.2)])
-def test_a_mesh_or_urdf_object_is_pushed_as_far_on_both_engines(call, thing, back):
-    r, sols = ask(call, PUSH.format(x=thing, back=back))
+def test_a_mesh_or_urdf_object_is_pushed_as_far_on_both_engines(call, thing, back, physics):
+    r, sols = ask(call, PUSH.format(x=thing, back=back, physics=physics))
     assert r.ok, (r.error_kind, r.message)
     moved = {s['E']: (s['D'], s['X'], s['Y']) for s in sols}
     assert set(moved) == set(ENGINES), moved
