@@ -170,3 +170,27 @@ def test_a_backend_whose_default_engine_is_mujoco_runs_a_job_that_names_none_on_
             [c for c in reader.connections if c.topic == '/projection/info'])]
     assert json.loads(message.settings_json)['physics']['engine'] == 'mujoco'
     assert 'pour' in str(info.value) and 'mujoco' in str(info.value)
+
+
+def test_a_urdfs_mesh_outside_the_asset_directories_is_refused_on_mujoco(tmp_path):
+    from projection_server.simulation.engines.mujoco.urdf import load_urdf
+
+    (tmp_path / 'part.obj').write_text('v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n'
+                                       'f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n')
+    urdf = tmp_path / 'thing.urdf'
+    urdf.write_text('<robot name="thing"><link name="base"><collision><geometry>'
+                    '<mesh filename="part.obj"/></geometry></collision></link></robot>')
+    with pytest.raises(ProjectionError, match='outside|inside the asset directories'):
+        load_urdf(str(urdf), 'thing1')
+
+
+def test_a_mesh_file_of_several_objects_collides_as_one_hull_each_on_mujoco():
+    import pybullet_data
+
+    from projection_server.simulation.engines.mujoco.urdf import load_urdf, obj_parts
+
+    mug = f'{pybullet_data.getDataPath()}/objects/mug.urdf'
+    parts = obj_parts(f'{pybullet_data.getDataPath()}/objects/mug_col.obj')
+    assert len(parts) == 6 and all(len(v) >= 4 and f.max() < len(v) for v, f in parts)
+    model = load_urdf(mug, 'mug1').compile()
+    assert model.ngeom == 6 and model.nmesh == 6

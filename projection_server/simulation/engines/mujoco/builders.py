@@ -165,13 +165,18 @@ def rigid_object(world: WorldSpec, entity: Entity) -> None:
     """A box, cylinder or sphere (MuJoCo's own primitives) of the entity's mass, centred on
     its pose, static for mass 0; breakable as on PyBullet
     (:class:`~projection_server.simulation.object_models.RigidBreakable`). Meshes and
-    URDF objects are PyBullet's only (an error naming the entity and the engine)."""
+    URDF objects are built by :mod:`.urdf`."""
     from projection_server.errors import ErrorKind, ProjectionError
     from projection_server.simulation.object_models import RigidBreakable
     from projection_server.simulation.objects.rigid_object import COLOR
 
     p = entity.properties
     kind = p['shape']
+    if kind in ('mesh', 'urdf'):
+        from projection_server.simulation.engines.mujoco.urdf import rigid_mesh, rigid_urdf
+
+        (rigid_mesh if kind == 'mesh' else rigid_urdf)(world, entity)
+        return
     if kind == 'box':
         size = (p['size_x'], p['size_y'], p['size_z'])
         geom = {'type': mujoco.mjtGeom.mjGEOM_BOX, 'size': [v / 2 for v in size]}
@@ -281,20 +286,7 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
     # loss of F: the finger moves with its drive until that takes more than F, and then
     # pushes with F.
     for finger in joints['fingers']:
-        joint = world.spec.joint(prefix + finger)
-        body = joint.parent
-        drive = body.parent.add_body(name=prefix + finger + '/drive', pos=list(body.pos),
-                                     quat=list(body.quat), mass=DRIVE_MASS,
-                                     inertia=[1e-6] * 3, ipos=[0.0, 0.0, 0.0],
-                                     iquat=[1.0, 0.0, 0.0, 0.0], explicitinertial=True)
-        drive.add_joint(name=prefix + finger + '/drive', type=mujoco.mjtJoint.mjJNT_SLIDE,
-                        axis=list(joint.axis), pos=list(joint.pos), armature=DRIVE_ARMATURE)
-        tendon = world.spec.add_tendon(name=prefix + finger + '/drive',
-                                       frictionloss=float(spec_data['gantry_force']),
-                                       solimp_friction=list(DRIVE_SOLIMP),
-                                       solref_friction=list(DRIVE_SOLREF))
-        tendon.wrap_joint(prefix + finger, 1.0)
-        tendon.wrap_joint(prefix + finger + '/drive', -1.0)
+        add_drive(world, prefix + finger, float(spec_data['gantry_force']))
     # The gantry's joints are set their speeds each step too, of the same inertia: a stiff
     # servo would have to be integrated implicitly, and MuJoCo solves the contacts with
     # the plain inertia, so what the pads hold would be pushed ahead of them as they move.
@@ -340,6 +332,26 @@ def pr2(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None
         if free:
             _park(physics, entity, hand, model, prefix, spec_data, limits)
     world.after.append(after)
+
+
+def add_drive(world: WorldSpec, name: str, force: float) -> None:
+    """A drive for the joint ``name``: a body beside the joint's on the same axis (named
+    ``name/drive``, as its joint), of a huge joint inertia that a controller sets the speed
+    of every step, held to the joint by a tendon ``name/drive`` of the two whose friction
+    loss is ``force`` (the most the drive pushes the joint with)."""
+    joint = world.spec.joint(name)
+    body = joint.parent
+    drive = body.parent.add_body(name=name + '/drive', pos=list(body.pos),
+                                 quat=list(body.quat), mass=DRIVE_MASS,
+                                 inertia=[1e-6] * 3, ipos=[0.0, 0.0, 0.0],
+                                 iquat=[1.0, 0.0, 0.0, 0.0], explicitinertial=True)
+    drive.add_joint(name=name + '/drive', type=joint.type, axis=list(joint.axis),
+                    pos=list(joint.pos), armature=DRIVE_ARMATURE)
+    tendon = world.spec.add_tendon(name=name + '/drive', frictionloss=float(force),
+                                   solimp_friction=list(DRIVE_SOLIMP),
+                                   solref_friction=list(DRIVE_SOLREF))
+    tendon.wrap_joint(name, 1.0)
+    tendon.wrap_joint(name + '/drive', -1.0)
 
 
 def _parked_orientation() -> tuple[float, float, float, float]:
@@ -401,7 +413,13 @@ def _subtree(body: Any) -> list[Any]:
 
 _OBJECTS = {'environment': environment, 'floor': floor, 'table': table, 'egg': egg,
             'robot': robot, 'rigid_object': rigid_object}
-_ROBOTS = {'pr2': pr2}
+def urdf(world: WorldSpec, entity: Entity, gripper: Entity | None = None) -> None:
+    from projection_server.simulation.engines.mujoco.urdf import urdf_robot
+
+    urdf_robot(world, entity, gripper)
+
+
+_ROBOTS = {'pr2': pr2, 'urdf': urdf}
 
 
 def object_builder(name: str) -> Callable[[WorldSpec, Entity], None] | None:
