@@ -72,10 +72,7 @@ class Monitor:
         self._frames: list[tuple[Any, ...]] | None = None
         self._tf: tuple[tuple[str, str], ...] = ()
         self._tf_pack: Any = None
-        self._base_pose = physics.base_pose
-        self._link_poses = physics.link_poses
-        self._multiply = physics.multiply_transforms
-        self._invert = physics.invert_transform
+        self._frame_poses = physics.frame_poses
         self._clock_pack = _clock_template().pack
         self._grippers: dict[tuple[Any, str], tuple[Any, tuple[str, str, list[str]]]] = {}
         self._objects: tuple[tuple[str, ...] | None, Any] = (None, None)   # names, their pack
@@ -187,27 +184,7 @@ class Monitor:
         their parent links, in the order of ``self._tf`` (the frames, planned once)."""
         if self._frames is None:
             self._plan()
-        base_pose, link_poses = self._base_pose, self._link_poses
-        multiply, invert = self._multiply, self._invert
-        poses: list[tuple[Any, Any]] = []
-        for body_id, links, chain in self._frames:
-            base = base_pose(body_id)
-            poses.append(base)
-            if not links:
-                continue
-            states = link_poses(body_id, links)
-            if chain is None:
-                poses += states
-                continue
-            world = {-1: base}
-            inverse: dict[int, Any] = {}   # of a parent's world pose, once per sample
-            for (link, parent), pose in zip(chain, states):
-                world[link] = pose
-                inverted = inverse.get(parent)
-                if inverted is None:
-                    inverted = inverse[parent] = invert(*world[parent])
-                poses.append(multiply(*inverted, *pose))
-        return poses
+        return self._frame_poses(self._frames)
 
     def _plan(self) -> None:
         frames, tf = [], []

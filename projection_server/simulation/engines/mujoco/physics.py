@@ -122,6 +122,34 @@ class MujocoPhysics(Physics):
             out.append((tuple(positions[link]), (x, y, z, w)))
         return out
 
+    def frame_poses(self, frames: list[tuple[int, list[int], list[tuple[int, int]] | None]]
+                    ) -> list[tuple[Vec3, Quat]]:
+        """:meth:`Physics.frame_poses`, from one read of each pose array: the same
+        poses as from ``base_pose``, ``link_poses`` and the transforms."""
+        positions, quaternions = self._xpos.tolist(), self._xquat.tolist()
+        centres = self._xipos.tolist()
+        multiply, invert = self.multiply_transforms, self.invert_transform
+        poses: list[tuple[Vec3, Quat]] = []
+        for body_id, links, chain in frames:
+            w, x, y, z = quaternions[body_id]
+            base = (tuple(centres[body_id]), (x, y, z, w))
+            poses.append(base)
+            if chain is None:
+                for link in links:
+                    w, x, y, z = quaternions[link]
+                    poses.append((tuple(positions[link]), (x, y, z, w)))
+                continue
+            world = {-1: base}
+            inverse: dict[int, Any] = {}
+            for link, parent in chain:
+                w, x, y, z = quaternions[link]
+                pose = world[link] = (tuple(positions[link]), (x, y, z, w))
+                inverted = inverse.get(parent)
+                if inverted is None:
+                    inverted = inverse[parent] = invert(*world[parent])
+                poses.append(multiply(*inverted, *pose))
+        return poses
+
     def link_parent(self, body_id: int, link: int) -> int:
         parent = int(self.model.body_parentid[link])
         return -1 if parent == body_id else parent
