@@ -37,6 +37,7 @@ __all__ = [
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
+_VELOCITY_GAINS = [1.0, 1.0]   # of the gantry's position motors (the speed fed forward)
 
 
 @dataclass(frozen=True)
@@ -187,6 +188,10 @@ class Gripper:
         self._gain = position_gain
         self.command = 'open'
         self.commanded_force = 0.0
+        # What every move sends the gantry's joints but their targets (each step of a motion)
+        self._gantry = [self._approach, self._lift]
+        self._gantry_forces = [max_joint_force] * 2
+        self._gantry_gains = [position_gain] * 2
         for j in self._fingers:   # velocity motors off until commanded
             self._client.setJointMotorControl2(body_id, j, self._client.VELOCITY_CONTROL,
                                                targetVelocity=0.0, force=0.0)
@@ -218,10 +223,10 @@ class Gripper:
         targets move (fed forward: a target that moves smoothly is followed without lag)."""
         c = self._client
         c.setJointMotorControlArray(
-            self.body_id, [self._approach, self._lift], c.POSITION_CONTROL,
+            self.body_id, self._gantry, c.POSITION_CONTROL,
             targetPositions=[approach, lift], targetVelocities=[approach_speed, lift_speed],
-            forces=[self._max_joint_force] * 2, positionGains=[self._gain] * 2,
-            velocityGains=[1.0, 1.0])
+            forces=self._gantry_forces, positionGains=self._gantry_gains,
+            velocityGains=_VELOCITY_GAINS)
 
     def close(self, force: float, speed: float) -> None:
         """Close both fingers at ``speed`` [m/s], each pushing with at most ``force`` [N]

@@ -332,6 +332,8 @@ class MujocoGripper:
         # memory for the data's life.
         self._qpos_array, self._qvel_array = physics.data.qpos, physics.data.qvel
         self._finger_qpos_list = self._finger_qpos.tolist()
+        self._tendon_list = self._tendons.tolist()
+        self._applied: list[float] | None = None   # the tendons' friction losses last set
         self._apply_limits()
         physics.controllers.append(self._control)
 
@@ -355,9 +357,11 @@ class MujocoGripper:
             qvel[dof] = -limit if speed < -limit else limit if speed > limit else speed
 
     def _apply_limits(self) -> None:
-        n = len(self._drives)
-        self._physics.model.tendon_frictionloss[self._tendons] = self._force[-n:]
-        self._tendon_list = self._tendons.tolist()
+        forces = self._force[-len(self._drives):]
+        if forces == self._applied:   # the gantry's targets move each step; the grip not
+            return
+        self._physics.model.tendon_frictionloss[self._tendons] = forces
+        self._applied = forces
 
     def _set(self, joint: int, target: float | None, speed: float, limit: float,
              force: float) -> None:
