@@ -232,34 +232,28 @@ class MujocoPhysics(Physics):
         if n == 0:
             return points
         contact = d.contact
-        geoms = contact.geom.tolist()
-        addresses = contact.efc_address.tolist()
-        dims = contact.dim.tolist()
-        frames = contact.frame.tolist()
-        positions = contact.pos.tolist()
-        distances = contact.dist.tolist()
         owner = self._owner_list
         elliptic = self._elliptic
-        efc = d.efc_force
-        out = np.zeros(6)
-        for k in range(n):
-            address = addresses[k]
+        # The step's constraint forces as one list: a handful of numpy scalars cost more.
+        efc = d.efc_force.tolist() if elliptic else None
+        out = None if elliptic else np.zeros(6)
+        for k, ((g1, g2), address, dim, frame, position, dist) in enumerate(zip(
+                contact.geom.tolist(), contact.efc_address.tolist(), contact.dim.tolist(),
+                contact.frame.tolist(), contact.pos.tolist(), contact.dist.tolist())):
             if address < 0:   # excluded: no constraint
                 continue
-            g1, g2 = geoms[k]
             b1, l1 = owner[g1]
             b2, l2 = owner[g2]
             if b1 < 0 or b2 < 0 or b1 == b2:
                 continue
             if elliptic:
-                fn = float(efc[address])
-                ft1, ft2 = ((float(efc[address + 1]), float(efc[address + 2]))
-                            if dims[k] > 1 else (0.0, 0.0))
+                fn = efc[address]
+                ft1, ft2 = (efc[address + 1], efc[address + 2]) if dim > 1 else (0.0, 0.0)
             else:
                 mujoco.mj_contactForce(self.model, d, k, out)
                 fn, ft1, ft2 = float(out[0]), float(out[1]), float(out[2])
-            nx, ny, nz, t1x, t1y, t1z, t2x, t2y, t2z = frames[k]
-            position = tuple(positions[k])
+            nx, ny, nz, t1x, t1y, t1z, t2x, t2y, t2z = frame
+            position = tuple(position)
             t1, t2 = (t1x, t1y, t1z), (t2x, t2y, t2z)
             if b1 < b2:   # a = geom 1's body: the normal from b to a is -n; a feels -f
                 a, la, b, lb = b1, l1, b2, l2
@@ -267,12 +261,19 @@ class MujocoPhysics(Physics):
             else:
                 a, la, b, lb = b2, l2, b1, l1
                 normal, back, f1, f2 = (nx, ny, nz), (-nx, -ny, -nz), ft1, ft2
-            dist = distances[k]
-            points.setdefault(a, []).append(
-                (0, a, b, la, lb, position, position, normal, dist, fn, f1, t1, f2, t2))
+            point = (0, a, b, la, lb, position, position, normal, dist, fn, f1, t1, f2, t2)
             # From the later body: the normal turned, the friction as it is (the protocol).
-            points.setdefault(b, []).append(
-                (0, b, a, lb, la, position, position, back, dist, fn, f1, t1, f2, t2))
+            turned = (0, b, a, lb, la, position, position, back, dist, fn, f1, t1, f2, t2)
+            listed = points.get(a)
+            if listed is None:
+                points[a] = [point]
+            else:
+                listed.append(point)
+            listed = points.get(b)
+            if listed is None:
+                points[b] = [turned]
+            else:
+                listed.append(turned)
         return points
 
 
