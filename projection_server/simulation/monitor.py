@@ -408,16 +408,19 @@ class ContactAggregator:
         self._bodies: list[int] = []
         self._pairs: dict[tuple[int, int, int, int], Any] = {}
         self._particles: set[int] = set()
+        self._skipped: dict[int, set[int]] = {}
 
     def add_step(self) -> None:
         """Add the contacts of the step just made."""
         self._steps += 1
         if self._version != self.physics.bodies_version:
             self._replan()
-        pairs, sums, bodies, particles = self._pairs, self._sums, self._bodies, self._particles
+        pairs, sums, bodies, skipped = self._pairs, self._sums, self._bodies, self._skipped
         for body, points in zip(bodies, self.physics.contact_points_of(bodies)):
+            skip = skipped[body]
             for point in points:
-                if point[2] in particles:   # most of a pour's points; never counted here
+                # Most of a pour's points (particles), and those counted from the other body.
+                if point[2] in skip:
                     continue
                 pair_key = (body, point[3], point[2], point[4])
                 pair = pairs.get(pair_key, False)
@@ -467,6 +470,10 @@ class ContactAggregator:
                         if not b.static and b.group is None]
         self._pairs = {}
         self._particles = {b for fluid in physics.fluids.values() for b in fluid.body_ids}
+        # Per body, the bodies whose contacts with it are not counted from it.
+        self._skipped = {body: self._particles | {other for other in self._bodies
+                                                  if other < body}
+                         for body in self._bodies}
         self._version = physics.bodies_version
 
     def _pair(self, body: int, link: int, other: int, other_link: int
