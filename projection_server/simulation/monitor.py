@@ -72,10 +72,7 @@ class Monitor:
         self._frames: list[tuple[Any, ...]] | None = None
         self._tf: tuple[tuple[str, str], ...] = ()
         self._tf_pack: Any = None
-        self._base_pose = physics.base_pose
-        self._link_poses = physics.link_poses
-        self._multiply = physics.multiply_transforms
-        self._invert = physics.invert_transform
+        self._frame_poses = physics.frame_poses
         self._clock_pack = _clock_template().pack
         self._grippers: dict[tuple[Any, str], tuple[Any, tuple[str, str, list[str]]]] = {}
         self._objects: tuple[tuple[str, ...] | None, Any] = (None, None)   # names, their pack
@@ -187,27 +184,7 @@ class Monitor:
         their parent links, in the order of ``self._tf`` (the frames, planned once)."""
         if self._frames is None:
             self._plan()
-        base_pose, link_poses = self._base_pose, self._link_poses
-        multiply, invert = self._multiply, self._invert
-        poses: list[tuple[Any, Any]] = []
-        for body_id, links, chain in self._frames:
-            base = base_pose(body_id)
-            poses.append(base)
-            if not links:
-                continue
-            states = link_poses(body_id, links)
-            if chain is None:
-                poses += states
-                continue
-            world = {-1: base}
-            inverse: dict[int, Any] = {}   # of a parent's world pose, once per sample
-            for (link, parent), pose in zip(chain, states):
-                world[link] = pose
-                inverted = inverse.get(parent)
-                if inverted is None:
-                    inverted = inverse[parent] = invert(*world[parent])
-                poses.append(multiply(*inverted, *pose))
-        return poses
+        return self._frame_poses(self._frames)
 
     def _plan(self) -> None:
         frames, tf = [], []
@@ -431,16 +408,19 @@ class ContactAggregator:
         self._bodies: list[int] = []
         self._pairs: dict[tuple[int, int, int, int], Any] = {}
         self._particles: set[int] = set()
+        self._skipped: dict[int, set[int]] = {}
 
     def add_step(self) -> None:
         """Add the contacts of the step just made."""
         self._steps += 1
         if self._version != self.physics.bodies_version:
             self._replan()
-        pairs, sums, bodies, particles = self._pairs, self._sums, self._bodies, self._particles
+        pairs, sums, bodies, skipped = self._pairs, self._sums, self._bodies, self._skipped
         for body, points in zip(bodies, self.physics.contact_points_of(bodies)):
+            skip = skipped[body]
             for point in points:
-                if point[2] in particles:   # most of a pour's points; never counted here
+                # Most of a pour's points (particles), and those counted from the other body.
+                if point[2] in skip:
                     continue
                 pair_key = (body, point[3], point[2], point[4])
                 pair = pairs.get(pair_key, False)
@@ -490,6 +470,10 @@ class ContactAggregator:
                         if not b.static and b.group is None]
         self._pairs = {}
         self._particles = {b for fluid in physics.fluids.values() for b in fluid.body_ids}
+        # Per body, the bodies whose contacts with it are not counted from it.
+        self._skipped = {body: self._particles | {other for other in self._bodies
+                                                  if other < body}
+                         for body in self._bodies}
         self._version = physics.bodies_version
 
     def _pair(self, body: int, link: int, other: int, other_link: int

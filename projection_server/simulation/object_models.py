@@ -217,18 +217,33 @@ class EggShell(Breakable):
                   orn: tuple[float, float, float, float]) -> float | None:
         """Equivalent load of a pad's contact (``state``: the pad link's world frame);
         None if the pad is not over the shell."""
-        inverse = _conjugate(state[1])
+        # _rotate(inverse, pos - origin) and _multiply(inverse, orn) of the link's
+        # conjugate, written out (every step a pad touches): the same operations.
         (px, py, pz), (qx, qy, qz) = pos, state[0]
-        offset = _rotate(inverse, (px - qx, py - qy, pz - qz))
-        turn = _multiply(inverse, orn)
+        sx, sy, sz, sw = state[1]
+        ax, ay, az, aw = -sx, -sy, -sz, sw
+        bx, by, bz = px - qx, py - qy, pz - qz
+        mx = aw * bx + ax * 0.0 + ay * bz - az * by
+        my = aw * by - ax * bz + ay * 0.0 + az * bx
+        mz = aw * bz + ax * by - ay * bx + az * 0.0
+        mw = aw * 0.0 - ax * bx - ay * by - az * bz
+        cx, cy, cz, cw = -ax, -ay, -az, aw
+        offset = (mw * cx + mx * cw + my * cz - mz * cy, mw * cy - mx * cz + my * cw + mz * cx,
+                  mw * cz + mx * cy - my * cx + mz * cw)
+        bx, by, bz, bw = orn
+        turn = (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
         cached = self._cache.get(key)
         if cached is not None and self.cache:
             force0, (ox, oy, oz), turn0, load0 = cached
-            if (abs(force - force0) <= CACHE_FORCE * force0
-                    and max(abs(offset[0] - ox), abs(offset[1] - oy), abs(offset[2] - oz))
-                    <= CACHE_SHIFT
-                    and _angle(turn, turn0) <= CACHE_TURN):
-                return load0 * force / force0
+            if abs(force - force0) <= CACHE_FORCE * force0:
+                dx, dy, dz = abs(offset[0] - ox), abs(offset[1] - oy), abs(offset[2] - oz)
+                shift = dx if dx >= dy and dx >= dz else dy if dy >= dz else dz   # max()
+                if shift <= CACHE_SHIFT:
+                    dot = abs(turn[0] * turn0[0] + turn[1] * turn0[1] + turn[2] * turn0[2]
+                              + turn[3] * turn0[3])
+                    if 2.0 * math.acos(dot if dot < 1.0 else 1.0) <= CACHE_TURN:
+                        return load0 * force / force0
         origin = np.asarray(state[0])
         rot = physics.rotation_matrix(state[1])
         shell = physics.rotation_matrix(orn)

@@ -37,6 +37,7 @@ __all__ = [
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
+_VELOCITY_GAINS = [1.0, 1.0]   # of the gantry's position motors (the speed fed forward)
 
 
 @dataclass(frozen=True)
@@ -187,6 +188,10 @@ class Gripper:
         self._gain = position_gain
         self.command = 'open'
         self.commanded_force = 0.0
+        # What every move sends the gantry's joints but their targets (each step of a motion)
+        self._gantry = [self._approach, self._lift]
+        self._gantry_forces = [max_joint_force] * 2
+        self._gantry_gains = [position_gain] * 2
         for j in self._fingers:   # velocity motors off until commanded
             self._client.setJointMotorControl2(body_id, j, self._client.VELOCITY_CONTROL,
                                                targetVelocity=0.0, force=0.0)
@@ -218,10 +223,10 @@ class Gripper:
         targets move (fed forward: a target that moves smoothly is followed without lag)."""
         c = self._client
         c.setJointMotorControlArray(
-            self.body_id, [self._approach, self._lift], c.POSITION_CONTROL,
+            self.body_id, self._gantry, c.POSITION_CONTROL,
             targetPositions=[approach, lift], targetVelocities=[approach_speed, lift_speed],
-            forces=[self._max_joint_force] * 2, positionGains=[self._gain] * 2,
-            velocityGains=[1.0, 1.0])
+            forces=self._gantry_forces, positionGains=self._gantry_gains,
+            velocityGains=_VELOCITY_GAINS)
 
     def close(self, force: float, speed: float) -> None:
         """Close both fingers at ``speed`` [m/s], each pushing with at most ``force`` [N]
@@ -308,7 +313,8 @@ class Physics:
     * the registry (:attr:`bodies`, :attr:`grippers`, :attr:`models`, :meth:`name_of`,
       :meth:`link_name`), time (:meth:`step`, :meth:`step_unmonitored`, :attr:`time_ns`);
     * poses, as ``((x, y, z), (x, y, z, w))``: :meth:`pose` by name, ``base_pose(body)``,
-      :meth:`link_poses` (a link's frame: its URDF frame), :meth:`link_parent`, and the
+      :meth:`link_poses` (a link's frame: its URDF frame), :meth:`frame_poses` (the
+      monitor's frames, in one call), :meth:`link_parent`, and the
       transform algebra :meth:`multiply_transforms`, :meth:`invert_transform`,
       :meth:`rotation_matrix`, :meth:`quaternion_from_euler`; ``base_velocity(body)``;
     * contacts: :meth:`contact_points` of a body in the last step, each a tuple of
@@ -441,6 +447,33 @@ class Physics:
         """World frames of ``links`` of ``body_id``, in one query."""
         return [(state[4], state[5]) for state in
                 self.client.getLinkStates(body_id, links, computeForwardKinematics=True)]
+
+    def frame_poses(self, frames: list[tuple[int, list[int], list[tuple[int, int]] | None]]
+                    ) -> list[tuple[Vec3, Quat]]:
+        """The poses of ``frames``, each ``(body, links, chain)``: the body's base pose in
+        the world, then its links' (``chain`` None) or, along ``chain`` (``(link, parent)``,
+        parents first), each link's pose relative to its parent's (-1: the base)."""
+        base_pose, link_poses = self.base_pose, self.link_poses
+        multiply, invert = self.multiply_transforms, self.invert_transform
+        poses: list[tuple[Any, Any]] = []
+        for body_id, links, chain in frames:
+            base = base_pose(body_id)
+            poses.append(base)
+            if not links:
+                continue
+            states = link_poses(body_id, links)
+            if chain is None:
+                poses += states
+                continue
+            world = {-1: base}
+            inverse: dict[int, Any] = {}   # of a parent's world pose, once per call
+            for (link, parent), pose in zip(chain, states):
+                world[link] = pose
+                inverted = inverse.get(parent)
+                if inverted is None:
+                    inverted = inverse[parent] = invert(*world[parent])
+                poses.append(multiply(*inverted, *pose))
+        return poses
 
     def link_parent(self, body_id: int, link: int) -> int:
         """The link's parent link (-1: the base)."""

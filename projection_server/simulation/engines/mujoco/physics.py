@@ -27,6 +27,7 @@ __all__ = ['MujocoGripper', 'MujocoPhysics']
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
+_FRICTION_TENDON = int(mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON)
 
 
 class MujocoPhysics(Physics):
@@ -44,6 +45,10 @@ class MujocoPhysics(Physics):
         self._owner_list: list[tuple[int, int]] = []
         self._points: dict[int, list[tuple[Any, ...]]] | None = None   # of this step
         self._free: dict[int, int] = {}   # body -> its free joint's first dof
+        # The pose arrays, bound once: MjData's attributes make a new array on each access,
+        # and indexing one with a list of rows costs several times reading it whole.
+        self._xpos, self._xquat, self._xipos = data.xpos, data.xquat, data.xipos
+        self._elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
 
     def bind(self) -> None:
         """Map every geom to its entity's body and link, once the bodies are registered."""
@@ -100,9 +105,8 @@ class MujocoPhysics(Physics):
     # --- poses ----------------------------------------------------------------------------
     def base_pose(self, body_id: int) -> tuple[Vec3, Quat]:
         """A body's base frame as PyBullet's: at its centre of mass, turned as its link."""
-        d = self.data
-        w, x, y, z = d.xquat[body_id].tolist()
-        return tuple(d.xipos[body_id].tolist()), (x, y, z, w)
+        w, x, y, z = self._xquat[body_id].tolist()
+        return tuple(self._xipos[body_id].tolist()), (x, y, z, w)
 
     def pose(self, name: str) -> tuple[Vec3, Quat]:
         return self.base_pose(self.body(name).body_id)
@@ -111,9 +115,40 @@ class MujocoPhysics(Physics):
         return self.base_pose(link)
 
     def link_poses(self, body_id: int, links: list[int]) -> list[tuple[Vec3, Quat]]:
-        d = self.data
-        positions, quaternions = d.xpos[links].tolist(), d.xquat[links].tolist()
-        return [(tuple(p), (q[1], q[2], q[3], q[0])) for p, q in zip(positions, quaternions)]
+        positions, quaternions = self._xpos.tolist(), self._xquat.tolist()
+        out = []
+        for link in links:
+            w, x, y, z = quaternions[link]
+            out.append((tuple(positions[link]), (x, y, z, w)))
+        return out
+
+    def frame_poses(self, frames: list[tuple[int, list[int], list[tuple[int, int]] | None]]
+                    ) -> list[tuple[Vec3, Quat]]:
+        """:meth:`Physics.frame_poses`, from one read of each pose array: the same
+        poses as from ``base_pose``, ``link_poses`` and the transforms."""
+        positions, quaternions = self._xpos.tolist(), self._xquat.tolist()
+        centres = self._xipos.tolist()
+        multiply, invert = self.multiply_transforms, self.invert_transform
+        poses: list[tuple[Vec3, Quat]] = []
+        for body_id, links, chain in frames:
+            w, x, y, z = quaternions[body_id]
+            base = (tuple(centres[body_id]), (x, y, z, w))
+            poses.append(base)
+            if chain is None:
+                for link in links:
+                    w, x, y, z = quaternions[link]
+                    poses.append((tuple(positions[link]), (x, y, z, w)))
+                continue
+            world = {-1: base}
+            inverse: dict[int, Any] = {}
+            for link, parent in chain:
+                w, x, y, z = quaternions[link]
+                pose = world[link] = (tuple(positions[link]), (x, y, z, w))
+                inverted = inverse.get(parent)
+                if inverted is None:
+                    inverted = inverse[parent] = invert(*world[parent])
+                poses.append(multiply(*inverted, *pose))
+        return poses
 
     def link_parent(self, body_id: int, link: int) -> int:
         parent = int(self.model.body_parentid[link])
@@ -128,14 +163,27 @@ class MujocoPhysics(Physics):
 
     @staticmethod
     def multiply_transforms(p1: Vec3, q1: Quat, p2: Vec3, q2: Quat) -> tuple[Vec3, Quat]:
-        r = _rotate(q1, p2)
-        return (p1[0] + r[0], p1[1] + r[1], p1[2] + r[2]), _multiply(q1, q2)
+        # _rotate(q1, p2) and _multiply(q1, q2) written out (the monitor's frames, each
+        # sample): the same operations in the same order.
+        x, y, z, w = q1
+        vx, vy, vz = p2
+        cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+        dx, dy, dz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
+        bx, by, bz, bw = q2
+        return ((p1[0] + (vx + 2 * (w * cx + dx)), p1[1] + (vy + 2 * (w * cy + dy)),
+                 p1[2] + (vz + 2 * (w * cz + dz))),
+                (w * bx + x * bw + y * bz - z * by, w * by - x * bz + y * bw + z * bx,
+                 w * bz + x * by - y * bx + z * bw, w * bw - x * bx - y * by - z * bz))
 
     @staticmethod
     def invert_transform(p: Vec3, q: Quat) -> tuple[Vec3, Quat]:
-        c = (-q[0], -q[1], -q[2], q[3])
-        r = _rotate(c, p)
-        return (-r[0], -r[1], -r[2]), c
+        # (-_rotate(c, p), c) of the conjugate c, written out.
+        x, y, z, w = -q[0], -q[1], -q[2], q[3]
+        vx, vy, vz = p
+        cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+        dx, dy, dz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
+        return ((-(vx + 2 * (w * cx + dx)), -(vy + 2 * (w * cy + dy)),
+                 -(vz + 2 * (w * cz + dz))), (x, y, z, w))
 
     @staticmethod
     def rotation_matrix(quaternion: Quat) -> np.ndarray:
@@ -184,34 +232,28 @@ class MujocoPhysics(Physics):
         if n == 0:
             return points
         contact = d.contact
-        geoms = contact.geom.tolist()
-        addresses = contact.efc_address.tolist()
-        dims = contact.dim.tolist()
-        frames = contact.frame.tolist()
-        positions = contact.pos.tolist()
-        distances = contact.dist.tolist()
         owner = self._owner_list
-        elliptic = self.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
-        efc = d.efc_force
-        out = np.zeros(6)
-        for k in range(n):
-            address = addresses[k]
+        elliptic = self._elliptic
+        # The step's constraint forces as one list: a handful of numpy scalars cost more.
+        efc = d.efc_force.tolist() if elliptic else None
+        out = None if elliptic else np.zeros(6)
+        for k, ((g1, g2), address, dim, frame, position, dist) in enumerate(zip(
+                contact.geom.tolist(), contact.efc_address.tolist(), contact.dim.tolist(),
+                contact.frame.tolist(), contact.pos.tolist(), contact.dist.tolist())):
             if address < 0:   # excluded: no constraint
                 continue
-            g1, g2 = geoms[k]
             b1, l1 = owner[g1]
             b2, l2 = owner[g2]
             if b1 < 0 or b2 < 0 or b1 == b2:
                 continue
             if elliptic:
-                fn = float(efc[address])
-                ft1, ft2 = ((float(efc[address + 1]), float(efc[address + 2]))
-                            if dims[k] > 1 else (0.0, 0.0))
+                fn = efc[address]
+                ft1, ft2 = (efc[address + 1], efc[address + 2]) if dim > 1 else (0.0, 0.0)
             else:
                 mujoco.mj_contactForce(self.model, d, k, out)
                 fn, ft1, ft2 = float(out[0]), float(out[1]), float(out[2])
-            nx, ny, nz, t1x, t1y, t1z, t2x, t2y, t2z = frames[k]
-            position = tuple(positions[k])
+            nx, ny, nz, t1x, t1y, t1z, t2x, t2y, t2z = frame
+            position = tuple(position)
             t1, t2 = (t1x, t1y, t1z), (t2x, t2y, t2z)
             if b1 < b2:   # a = geom 1's body: the normal from b to a is -n; a feels -f
                 a, la, b, lb = b1, l1, b2, l2
@@ -219,12 +261,19 @@ class MujocoPhysics(Physics):
             else:
                 a, la, b, lb = b2, l2, b1, l1
                 normal, back, f1, f2 = (nx, ny, nz), (-nx, -ny, -nz), ft1, ft2
-            dist = distances[k]
-            points.setdefault(a, []).append(
-                (0, a, b, la, lb, position, position, normal, dist, fn, f1, t1, f2, t2))
+            point = (0, a, b, la, lb, position, position, normal, dist, fn, f1, t1, f2, t2)
             # From the later body: the normal turned, the friction as it is (the protocol).
-            points.setdefault(b, []).append(
-                (0, b, a, lb, la, position, position, back, dist, fn, f1, t1, f2, t2))
+            turned = (0, b, a, lb, la, position, position, back, dist, fn, f1, t1, f2, t2)
+            listed = points.get(a)
+            if listed is None:
+                points[a] = [point]
+            else:
+                listed.append(point)
+            listed = points.get(b)
+            if listed is None:
+                points[b] = [turned]
+            else:
+                listed.append(turned)
         return points
 
 
@@ -280,6 +329,12 @@ class MujocoGripper:
         self._limit = [math.inf] * count
         self._servo = [True] * count
         self._force = [max_joint_force] * count
+        # Bound once (MjData makes a new array on each access); qpos and qvel keep their
+        # memory for the data's life.
+        self._qpos_array, self._qvel_array = physics.data.qpos, physics.data.qvel
+        self._finger_qpos_list = self._finger_qpos.tolist()
+        self._tendon_list = self._tendons.tolist()
+        self._applied: list[float] | None = None   # the tendons' friction losses last set
         self._apply_limits()
         physics.controllers.append(self._control)
 
@@ -293,8 +348,7 @@ class MujocoGripper:
 
     def _control(self) -> None:
         """The servos' velocity commands and the drives' speeds of the next step."""
-        data = self._physics.data
-        qpos, qvel = data.qpos, data.qvel
+        qpos, qvel = self._qpos_array.tolist(), self._qvel_array
         rate = self._rate
         for dof, address, target, speed, limit, servo in zip(
                 self._dof_list, self._qpos_list, self._target, self._speed, self._limit,
@@ -304,9 +358,11 @@ class MujocoGripper:
             qvel[dof] = -limit if speed < -limit else limit if speed > limit else speed
 
     def _apply_limits(self) -> None:
-        n = len(self._drives)
-        self._physics.model.tendon_frictionloss[self._tendons] = self._force[-n:]
-        self._tendon_list = self._tendons.tolist()
+        forces = self._force[-len(self._drives):]
+        if forces == self._applied:   # the gantry's targets move each step; the grip not
+            return
+        self._physics.model.tendon_frictionloss[self._tendons] = forces
+        self._applied = forces
 
     def _set(self, joint: int, target: float | None, speed: float, limit: float,
              force: float) -> None:
@@ -364,15 +420,24 @@ class MujocoGripper:
         magnitude of their servos' forces."""
         data = self._physics.data
         n = len(self._fingers)
-        opening = float(data.qpos[self._finger_qpos].sum())
+        qpos = self._qpos_array.tolist()
+        # numpy's sum of a few: the first plus the sum of the others from 0.0
+        first, *rest = self._finger_qpos_list
+        others = 0.0
+        for address in rest:
+            others += qpos[address]
+        opening = qpos[first] + others
         # What each finger is pushed with: its tendon's friction.
         # The friction rows follow the equality rows (MuJoCo's order of constraints).
         first, last = data.ne, data.ne + data.nf
         ids, forces = data.efc_id[first:last].tolist(), data.efc_force[first:last].tolist()
         kinds = data.efc_type[first:last].tolist()
-        mine, tendon = self._tendon_list, mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON
-        return opening, sum(abs(f) for i, f, k in zip(ids, forces, kinds)
-                            if k == tendon and i in mine) / n
+        mine, tendon = self._tendon_list, _FRICTION_TENDON
+        total = 0
+        for i, f, k in zip(ids, forces, kinds):
+            if k == tendon and i in mine:
+                total += abs(f)
+        return opening, total / n
 
     def pad_faces(self) -> list[tuple[Pad, np.ndarray, np.ndarray, np.ndarray]]:
         faces = []
