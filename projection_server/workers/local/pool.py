@@ -37,6 +37,7 @@ import time
 from typing import Any, ClassVar, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.workers import cost
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.base import BackendBase, BUSY, WorkerState
 from projection_server.workers.messages import (Close, LeafResult, Project, Ready, Result,
@@ -293,10 +294,12 @@ class _Slot:
                     shutil.rmtree(bag.parent, ignore_errors=True)   # before it is answered
                     with pool._lock:
                         pool._answered(worker, answered, result)
+                    cost.record('answered', bag.name, t=time.time())
                 elif isinstance(message, LeafResult):
                     result = self._published(bags[message.index], message)
                     with pool._lock:
                         pool._leaf_answered(worker, message.index, result)
+                    cost.record('answered', bags[message.index].name, t=time.time())
                 elif isinstance(message, TreeEnded):
                     with pool._lock:
                         pool._tree_ended(worker)
@@ -334,6 +337,10 @@ class _Slot:
             self._conn.send(command)
         except OSError:
             return False
+        if cost.PATH is not None:
+            for bag in ([command.bag] if isinstance(command, Project) else
+                        [bag for _, bag in command.leaves] if isinstance(command, Tree) else []):
+                cost.record('sent', bag, t=time.time())
         if isinstance(command, Project):   # when a worker was given work, for benchmarks
             _log.debug('projection sent to its worker: %s', os.path.basename(command.bag))
         return True
