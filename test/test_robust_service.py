@@ -113,38 +113,3 @@ def test_a_quantity_the_timeline_lacks_is_an_existence_error(call):
                                [certify(2), prefer(spin(unicorn1))], TL, {OK}, Best)''')
     assert not r.ok and r.error_kind == 'existence_error', r.message
     assert 'unicorn1' in r.message
-
-
-@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
-def test_grips_that_share_their_approach_give_the_bags_of_their_straight_runs(call, engine,
-                                                                               tmp_path):
-    # A round of a choice: the forces of one position in one world of the belief, queued
-    # together, run as one tree on the node's worker; each bag is the bag of its job run
-    # on its own from the start, to the byte.
-    from pathlib import Path
-
-    from projection_server.bags import read_records
-    from projection_server.settings import load_settings
-    from projection_server.simulation import Job
-    from projection_server.simulation.runner import Simulator
-
-    r, sols = ask(call, f'''{BELIEF.format(friction='uniform(0.2, 0.4)')},
-        make_projection(S, grasp_object, [(F, force, [2, 5, 9]), (_, position, [0.02])],
-                        [seed(7), worlds(0, 1), physics(_{{engine: {engine}}})], TL),
-        timeline_property(TL, meta(M)), get_dict(bag, M, Bag)''')
-    assert r.ok, (r.error_kind, r.message)
-    assert len(sols) == 3
-    settings, simulator = load_settings(), Simulator()
-    try:
-        for sol in sols:
-            info = next(rec.data for rec in read_records(sol['Bag']) if rec.kind == 'info')
-            job = Job.checked(json.loads(info.scenario_json), 'grasp_object',
-                              json.loads(info.parameters_json), {'engine': engine})
-            assert job.key(settings) == info.job_key
-            bag = tmp_path / sol['Bag'].rsplit('/', 1)[1] / Path(sol['Bag']).name
-            bag.parent.mkdir()
-            simulator.run(job, settings, bag)
-            assert ({f.name: f.read_bytes() for f in sorted(bag.iterdir())}
-                    == {f.name: f.read_bytes() for f in sorted(Path(sol['Bag']).iterdir())})
-    finally:
-        simulator.close()

@@ -179,13 +179,9 @@ def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(t
 
 
 def test_the_prefetch_plan_queues_whole_families_and_depth_ahead_otherwise(monkeypatch):
-    # A program whose parametrizations share nothing: depth ahead.
-    turns = [{'angle': a} for a in (0.1, 0.3, 0.5, 0.7, 0.9)]
-    assert projection.prefetch_plan('turn_pancake', turns, 2) == [[0, 1, 2], [3], [4], [], []]
-    # Grips of several forces share their approach: a position's, at once.
-    grasps = [{'force': f, 'position': x} for x in (0.0, 0.02) for f in (1, 3, 5)]
-    assert projection.prefetch_plan('grasp_object', grasps, 0) == [[0, 1, 2], [], [],
-                                                                    [3, 4, 5], [], []]
+    grasps = [{'force': f, 'position': 0.0} for f in (1, 3, 5, 7, 9)]
+    assert projection.prefetch_plan('grasp_object', grasps, 2) == [[0, 1, 2], [3], [4], [],
+                                                                    []]
     pours = [{'angle': a, 'time': 0.5, 'position': x} for x in (0.0, 0.02, 0.04, 0.06)
              for a in (1.9, 2.0)]
     # Position slowest: the families of the first three positions at once, then the fourth.
@@ -284,46 +280,3 @@ def test_a_plans_parametrizations_run_as_a_tree_with_the_bags_of_their_straight_
         assert (files(result.bag), without_bag(result.timeline)) == straight[job.key(settings)]
     outcomes = [{e[0] for e in result.timeline['events']} for result in results]
     assert 'slip' in outcomes[0] and 'lift' in outcomes[1] and 'slip' not in outcomes[1]
-
-
-# Grips of one position and several forces approach alike until the fingers close.
-FORCES = (1.0, 4.0, 11.0)
-
-
-def grasp_jobs(grasping, engine, position=0.02):
-    return [Job.checked(grasping, 'grasp_object', {'force': f, 'position': position},
-                        {'engine': engine}) for f in FORCES]
-
-
-@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
-def test_grips_of_several_forces_run_as_one_tree_with_the_bags_of_their_straight_runs(
-        make_scenario, engine, tmp_path, caplog):
-    settings, grasping = load_settings(), make_scenario()
-    simulator = Simulator()
-    straight = {}
-    try:
-        for job in grasp_jobs(grasping, engine):
-            key = job.key(settings)
-            bag = tmp_path / 'straight' / key / BagStore.name(job, key)
-            bag.parent.mkdir(parents=True)
-            straight[key] = files_of(bag, project(simulator, job, settings, bag))
-    finally:
-        simulator.close()
-    caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
-    with WorkerPool(tmp_path / 'pool', workers=1) as pool:
-        results = [f.result(timeout=120.0)
-                   for f in pool.submit_all(grasp_jobs(grasping, engine), 60.0)]
-    assert f'a tree of {len(FORCES)} projections' in caplog.text
-    for job, result in zip(grasp_jobs(grasping, engine), results):
-        assert (files(result.bag), without_bag(result.timeline)) == straight[job.key(settings)]
-
-
-def test_grips_at_other_positions_or_lift_times_share_no_steps(make_scenario):
-    settings, grasping = load_settings(), make_scenario()
-    families = {job.family(settings) for job in grasp_jobs(grasping, 'mujoco')}
-    assert len(families) == 1
-    others = [Job.checked(grasping, 'grasp_object', {'force': 4.0, **p}, {'engine': 'mujoco'})
-              for p in ({'position': 0.0}, {'position': 0.02, 'lift_time': 0.5})]
-    assert len(families | {job.family(settings) for job in others}) == 3
-    assert Job.checked(grasping, 'grasp_object', {'force': 4.0, 'position': 0.02}).family(
-        settings) not in families   # another engine

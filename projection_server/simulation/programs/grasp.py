@@ -77,8 +77,6 @@ class GraspObject:
         # (14 m/s^2 at 240 Hz, 68 at 960 Hz, against the lift's 0.58): the egg slid in the
         # pads at every jump, and the grip force that held it depended on the time step.
         self._rate = physics.settings.physics.rate_hz
-        # The first step whose control may close the fingers, a step early (see command_at).
-        self._closing = math.floor(APPROACHED * self._rate) - 1
         self._commanded: tuple[float, ...] | None = None
         self._follow()
         physics.step_hooks.append(self._follow)
@@ -97,17 +95,6 @@ class GraspObject:
     def control(self, physics: Physics) -> None:
         if physics.time >= APPROACHED and self.gripper.command != 'close':
             self.gripper.close(self.force, CLOSING_SPEED)
-
-    def command_at(self, params: dict[str, float], step: int) -> float | None:
-        """What ``params`` command for the step after ``step``: grips of any force
-        approach alike (None) until the fingers close with their own ``force``. Said a step
-        early, so that a rounding of the closing time never lets two forces share a step
-        that one of them closed in."""
-        return params['force'] if step >= self._closing else None
-
-    def retarget(self, params: dict[str, float]) -> None:
-        """Go on with the force of ``params`` (before the fingers close)."""
-        self.force = params['force']
 
     def state(self) -> list[tuple[str, int, str, str]]:
         """``(robot, -1, phase, egg)``: the phase under way (``phases``)."""
@@ -128,8 +115,5 @@ PROGRAM = register(Program(
     ),
     create=GraspObject,
     doc=__doc__.splitlines()[0],
-    # Where the pads go and how quickly they lift act from the start; the force only once
-    # the fingers close: grips of several forces share their approach.
-    setup_params=('position', 'lift_time'),
     engines=('pybullet', 'mujoco'),
 ))
