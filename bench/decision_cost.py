@@ -1,7 +1,12 @@
 """Where a certified robust choice's wall time goes, end to end through a live node.
 
     tools/with_env.sh python bench/decision_cost.py [--repeat 3] [--seed 1]
-        [--engines mujoco,pybullet] [--keep DIR]
+        [--engines mujoco,pybullet] [--keep DIR] [--before COMMAND]
+
+With ``--before COMMAND`` (an executable that runs a node of other code, e.g. of an earlier
+commit installed with ``pip install --prefix``, its ``PYTHONPATH`` and ``AMENT_PREFIX_PATH``
+first), a second node of that code asks the same queries, each right after this code's:
+the two are measured in the same run, under the same load.
 
 One node with 2 workers and an empty bag directory, its cost log on
 (``PROJECTION_SERVER_COST_LOG``, :mod:`projection_server.workers.cost`); each round asks
@@ -80,10 +85,38 @@ def breakdown(log: Path) -> dict[str, float]:
             'idle': 2 * span - sum(busy.values()), 'span': span}
 
 
+@contextlib.contextmanager
+def start_node(server: str, params: dict, log: Path, executable: str):
+    """:func:`harness.start_node` of the node ``executable``."""
+    from projection_server.client.launcher import node_command, NodeProcess
+
+    with NodeProcess(node_command(server, params, executable=executable), log) as proc:
+        proc.wait_for_service(f'{server}/query')
+        harness.wait_warm(proc.proc.pid, params['projection_workers'])
+        yield proc
+
+
+def report(what: str, seconds: float, f: dict[str, float], robust: dict, best: dict) -> None:
+    print(f'{what}: {seconds:.2f} s wall, floor {f["floor"]:.2f} s ({f["projections"]} '
+          f'projections, {f["sim_sum"]:.1f} CPU s of Simulator.run); force {robust["F"]} N, '
+          f'position {robust["P"]}, certified {best["certified"]}', flush=True)
+    if f['trees']:
+        print(f'  {f["in_trees"]} projections in {f["trees"]} trees: {f["tree_sim"]:.1f} CPU s '
+              f'of physics and forks, {1e3 * f["tree_sim"] / f["in_trees"]:.0f} ms a projection',
+              flush=True)
+    print(f'  per projection (median ms): sim {f["sim"]:.0f}, worker beyond sim '
+          f'{f["beyond"]:.1f} (timeline {f["timeline"]:.1f}), queue {f["queue"]:.0f}, to worker '
+          f'{f["to_worker"]:.1f}, back {f["back"]:.1f}, prolog gap {f["prolog"]:.1f}', flush=True)
+    print(f'  sums (s): worker beyond sim {f["beyond_sum"]:.2f}, back {f["back_sum"]:.2f}, '
+          f'prolog gaps {f["prolog_sum"]:.2f}, prolog waiting {f["waiting"]:.2f}, workers idle '
+          f'{f["idle"]:.2f} of 2 x {f["span"]:.2f}; node CPU {f["node_cpu"]:.2f}', flush=True)
+
+
 def main() -> int:
     parser = harness.arguments(__doc__, repeat=3, seed=1)
     parser.add_argument('--engines', default='mujoco,pybullet')
     parser.add_argument('--keep', type=Path, help='copy each query\'s cost log here')
+    parser.add_argument('--before', help='executable of a node of the code to compare with')
     args = parser.parse_args()
     engines = args.engines.split(',')
     harness.ros_domain(140)
@@ -94,59 +127,56 @@ def main() -> int:
     import rclpy
 
     rclpy.init()
-    rows: dict[str, list[tuple[float, int]]] = {e: [] for e in engines}
-    figures: dict[str, list[dict[str, float]]] = {e: [] for e in engines}
+    codes = ['after', 'before'] if args.before else ['after']
+    rows: dict[str, list[tuple[float, int]]] = {f'{e} {c}': [] for e in engines for c in codes}
+    figures: dict[str, list[dict[str, float]]] = {name: [] for name in rows}
+    choices: dict[str, list[str]] = {name: [] for name in rows}
     try:
         with contextlib.ExitStack() as stack:
             tmp = Path(stack.enter_context(tempfile.TemporaryDirectory()))
-            bags, log = tmp / 'bags', tmp / 'cost.jsonl'
-            os.environ['PROJECTION_SERVER_COST_LOG'] = str(log)   # the node inherits it
-            node = stack.enter_context(harness.start_node(
-                {'bag_dir': str(bags), 'projection_workers': 2, 'max_bags': 10_000_000},
-                tmp / 'node.log'))
-            c = stack.enter_context(harness.client())
+            nodes = {}
+            for code in codes:
+                server = '/projection_server' + ('' if code == 'after' else '_before')
+                log = tmp / f'cost-{code}.jsonl'
+                os.environ['PROJECTION_SERVER_COST_LOG'] = str(log)   # the node inherits it
+                node = stack.enter_context(start_node(
+                    server, {'bag_dir': str(tmp / f'bags-{code}'), 'projection_workers': 2,
+                             'max_bags': 10_000_000}, tmp / f'node-{code}.log',
+                    args.before if code == 'before' else 'projection_server'))
+                nodes[code] = (node, stack.enter_context(harness.client(server)), log,
+                               tmp / f'bags-{code}')
             for round_ in range(args.repeat):
                 seed = args.seed + round_
                 for engine in engines:
-                    log.write_text('')
-                    cpu = harness.cpu_seconds(node.proc.pid)
-                    seconds, count, (robust,) = harness.timed(
-                        c, bags, ROBUST.format(grid=GRID, seed=seed, engine=engine, ok=OK),
-                        timeout=3600)
-                    f = breakdown(log)
-                    if args.keep is not None:
-                        args.keep.mkdir(parents=True, exist_ok=True)
-                        (args.keep / f'{engine}-{seed}.jsonl').write_text(log.read_text())
-                    f['node_cpu'] = harness.cpu_seconds(node.proc.pid) - cpu
-                    f['wall'] = seconds
-                    rows[engine].append((seconds, count))
-                    figures[engine].append(f)
-                    best = {str(k): v for k, v in robust['B'].pairs}
-                    print(f'round {round_} {engine} seed {seed}: {seconds:.2f} s wall, floor '
-                          f'{f["floor"]:.2f} s ({f["projections"]} projections, '
-                          f'{f["sim_sum"]:.1f} CPU s of Simulator.run); force {robust["F"]} N, '
-                          f'position {robust["P"]}, certified {best["certified"]}', flush=True)
-                    if f['trees']:
-                        print(f'  {f["in_trees"]} projections in {f["trees"]} trees: '
-                              f'{f["tree_sim"]:.1f} CPU s of physics and forks, '
-                              f'{1e3 * f["tree_sim"] / f["in_trees"]:.0f} ms a projection',
-                              flush=True)
-                    print(f'  per projection (median ms): sim {f["sim"]:.0f}, worker beyond '
-                          f'sim {f["beyond"]:.1f} (timeline {f["timeline"]:.1f}), queue '
-                          f'{f["queue"]:.0f}, to worker {f["to_worker"]:.1f}, back '
-                          f'{f["back"]:.1f}, prolog gap {f["prolog"]:.1f}', flush=True)
-                    print(f'  sums (s): worker beyond sim {f["beyond_sum"]:.2f}, back '
-                          f'{f["back_sum"]:.2f}, prolog gaps {f["prolog_sum"]:.2f}, prolog '
-                          f'waiting {f["waiting"]:.2f}, workers idle {f["idle"]:.2f} of '
-                          f'2 x {f["span"]:.2f}; node CPU {f["node_cpu"]:.2f}', flush=True)
+                    for code in codes if round_ % 2 == 0 else codes[::-1]:   # in turn first
+                        node, c, log, bags = nodes[code]
+                        name = f'{engine} {code}'
+                        log.write_text('')
+                        cpu = harness.cpu_seconds(node.proc.pid)
+                        seconds, count, (robust,) = harness.timed(
+                            c, bags, ROBUST.format(grid=GRID, seed=seed, engine=engine,
+                                                   ok=OK), timeout=3600)
+                        f = breakdown(log)
+                        if args.keep is not None:
+                            args.keep.mkdir(parents=True, exist_ok=True)
+                            (args.keep / f'{engine}-{code}-{seed}.jsonl').write_text(
+                                log.read_text())
+                        f['node_cpu'] = harness.cpu_seconds(node.proc.pid) - cpu
+                        f['wall'] = seconds
+                        rows[name].append((seconds, count))
+                        figures[name].append(f)
+                        best = {str(k): v for k, v in robust['B'].pairs}
+                        choices[name].append(f'{robust["F"]}/{robust["P"]}/{best["certified"]}')
+                        report(f'round {round_} {name} seed {seed}', seconds, f, robust, best)
     finally:
         rclpy.try_shutdown()
     harness.medians(rows)
-    for engine, fs in figures.items():
+    for name, fs in figures.items():
         keys = ('wall', 'floor', 'idle', 'beyond_sum', 'prolog_sum', 'node_cpu')
-        print(f'{engine}: medians ' + ', '.join(
+        print(f'{name}: medians ' + ', '.join(
             f'{k} {statistics.median(f[k] for f in fs):.2f} s' for k in keys)
-            + f'; wall / floor {statistics.median(f["wall"] / f["floor"] for f in fs):.2f}')
+            + f'; wall / floor {statistics.median(f["wall"] / f["floor"] for f in fs):.2f}; '
+            f'choices (force/position/certified) {", ".join(choices[name])}')
     print(f'# {harness.machine()}')
     return 0
 
