@@ -34,7 +34,7 @@ from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.simulation.job import Job
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.settings import ENGINES, load_settings
-from projection_server.workers import create_backend, Retention
+from projection_server.workers import cost, create_backend, Retention
 
 if TYPE_CHECKING:
     from collections.abc import Mapping, Sequence
@@ -166,7 +166,7 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
     _warn_of(job)
     future = _get_backend().submit(job, timeout, owner)
     cached = future.done()   # its bag was made before, or prefetched and is done
-    started = time.monotonic()
+    started, asked = time.monotonic(), time.time()
     _log.debug('projection %s %s started', program, params)
     try:
         result = _wait(future, owner)
@@ -176,6 +176,7 @@ def simulate(scenario: dict[str, Any], program: str, params: dict[str, Any],
         raise
     _log.info('projection %s %s ended in %.2f s%s: %s', program, params,
               time.monotonic() - started, ' (cache hit)' if cached else '', result.bag)
+    cost.record('waited', result.bag, asked=asked, got=time.time())
     with _lock:
         if result.timeline is not None:
             _timelines[result.bag] = result.timeline

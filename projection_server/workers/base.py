@@ -65,6 +65,7 @@ from typing import Any, ClassVar, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.settings import load_settings
+from projection_server.workers import cost
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.bag_store import BagStore
 from projection_server.workers.requests import check_timeout, Requests
@@ -197,6 +198,8 @@ class BackendBase(ABC):
                 if new:
                     request.family = job.family(self.settings)
                     self._queue.append(request)
+                    if cost.PATH is not None:
+                        cost.record('queued', self.store.name(job, key), t=time.time())
                 futures.append(request.future)
             self._schedule()
         return futures

@@ -24,10 +24,12 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+import time
 import traceback
 from typing import Any
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.workers import cost
 from projection_server.workers.messages import (Close, LeafResult, Project, Ready, Result,
                                                 Start, Tree, TreeEnded)
 
@@ -74,16 +76,29 @@ def worker_main(conn: Any, settings: dict[str, Any], warm: bool = True) -> None:
             if isinstance(command, Tree):
                 _tree(conn, simulator, command.leaves, parsed)
             else:
-                conn.send(_project(simulator, command, parsed))
+                _answer(conn, simulator, command, parsed)
     finally:
         simulator.close()
 
 
-def _project(simulator: Any, command: Project, settings: Any) -> Result:
+def _answer(conn: Any, simulator: Any, command: Project, settings: Any) -> None:
+    """Run ``command`` and send its :class:`Result` (with its cost, if it is logged)."""
+    if cost.PATH is None:
+        conn.send(_project(simulator, command, settings))
+        return
+    start, cpu, spent = time.time(), time.process_time(), {}
+    conn.send(_project(simulator, command, settings, spent))
+    cost.record('projected', command.bag, start=start, end=time.time(),
+                cpu=time.process_time() - cpu, **spent)
+
+
+def _project(simulator: Any, command: Project, settings: Any,
+             spent: dict[str, float] | None = None) -> Result:
     from projection_server.workers.run import project
 
     try:
-        return Result(project(simulator, command.job, settings, Path(command.bag)), True)
+        return Result(project(simulator, command.job, settings, Path(command.bag), spent),
+                      True)
     except ProjectionError as exc:
         return Result(exc, False)
     except Exception as exc:
@@ -110,10 +125,14 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
 
     def report(index: int, result: Any, ok: bool) -> None:   # in the leaf's process
         if ok:   # the finished projection: its timeline, from the records it has in memory
+            cpu = time.process_time()   # the leaf's own steps (its clock began at its fork)
             result = timeline_of(result, leaves[index][1])
+            cost.record('leaf', str(leaves[index][1]), end=time.time(), sim_cpu=cpu,
+                        timeline_cpu=time.process_time() - cpu)
         ended(index).write_bytes(pickle.dumps(LeafResult(index, result, ok)))
         os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 
+    start, spent = time.time(), _children_cpu()
     try:
         pid = start_tree(simulator, leaves, settings, report)
     except Exception:   # e.g. fork failed: the pool runs the projections one by one
@@ -134,7 +153,7 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
                     raise SystemExit(0)
                 _signal_tree(pid, signal.SIGSTOP)
                 try:
-                    conn.send(_project(simulator, command, settings))
+                    _answer(conn, simulator, command, settings)
                 finally:
                     _signal_tree(pid, signal.SIGCONT)
             if ends in ready:
@@ -148,7 +167,19 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
                     message = pickle.loads(ended(index).read_bytes())
                     ended(index).unlink()
                     conn.send(message)
-    conn.send(TreeEnded(os.waitpid(pid, 0)[1] == 0))
+    complete = os.waitpid(pid, 0)[1] == 0
+    # The tree's CPU: every process of it has been waited for by its parent.
+    cost.record('tree', str(leaves[0][1]), start=start, end=time.time(),
+                cpu=_children_cpu() - spent, leaves=[os.path.basename(b) for _, b in leaves])
+    conn.send(TreeEnded(complete))
+
+
+def _children_cpu() -> float:
+    """CPU seconds of this process's ended and waited-for descendants."""
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _signal_tree(pid: int, signum: int) -> None:

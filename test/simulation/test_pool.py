@@ -203,6 +203,47 @@ def test_a_worker_is_replaced_after_its_share_of_projections(make_scenario, tmp_
         assert pool.worker_pids == second
 
 
+def _worker_processes() -> set[int]:
+    """The projection workers of this process's pools: its forkserver's children."""
+    def children(pid):
+        out = set()
+        for entry in os.listdir('/proc'):
+            if entry.isdigit():
+                try:
+                    stat = open(f'/proc/{entry}/stat').read()
+                except OSError:
+                    continue
+                if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
+                    out.add(int(entry))
+        return out
+    return {w for c in children(os.getpid())
+            if b'forkserver' in open(f'/proc/{c}/cmdline', 'rb').read() for w in children(c)}
+
+
+def test_a_workers_successor_starts_while_it_still_works(make_scenario, tmp_path):
+    from projection_server.workers.local import WorkerPool
+
+    others = _worker_processes()   # of the module's other pools
+    with WorkerPool(tmp_path, workers=1, max_projections=3) as pool:
+        pool.run(job(make_scenario, 1.1), timeout=60.0)
+        first = pool.worker_pids[0]
+        assert _worker_processes() - others == {first}
+        pool.run(job(make_scenario, 1.2), timeout=60.0)   # one left: its successor starts
+        deadline = time.monotonic() + 30.0
+        while _worker_processes() - others == {first}:
+            assert time.monotonic() < deadline, 'no successor started'
+            time.sleep(0.05)
+        successors = _worker_processes() - others - {first}
+        assert len(successors) == 1 and pool.worker_pids == [first]
+        pool.run(job(make_scenario, 1.3), timeout=60.0)   # its share: it is replaced
+        deadline = time.monotonic() + 60.0
+        while pool.worker_pids in ([first], [None]):
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        assert pool.worker_pids == list(successors)   # by the one started ahead
+        assert os.path.isdir(pool.run(job(make_scenario, 1.4), timeout=60.0))
+
+
 def test_retention_deletes_the_least_recently_used_bags(tmp_path):
     for i, name in enumerate(['old', 'mid', 'new']):
         (tmp_path / name).mkdir()

@@ -37,6 +37,7 @@ import time
 from typing import Any, ClassVar, TYPE_CHECKING
 
 from projection_server.errors import ErrorKind, ProjectionError
+from projection_server.workers import cost
 from projection_server.workers.backend import ProjectionResult
 from projection_server.workers.base import BackendBase, BUSY, WorkerState
 from projection_server.workers.messages import (Close, LeafResult, Project, Ready, Result,
@@ -142,6 +143,27 @@ class WorkerPool(BackendBase):
         self._work.notify_all()
 
 
+def _spare_ahead(pool: WorkerPool) -> int:
+    """How many projections before its replacement is due a worker's successor starts: a
+    tenth of its share, time for a start-up and warm-up of a few seconds."""
+    return max(1, pool.max_projections // 10)
+
+
+def _close_process(process: Any, conn: Any) -> None:
+    """Close ``conn`` and end ``process`` (SIGTERM, then SIGKILL)."""
+    if conn is not None:
+        conn.close()
+    if process is not None:
+        if process.is_alive():
+            process.terminate()
+            process.join(2.0)
+        if process.is_alive():
+            process.kill()
+            process.join(2.0)
+        if not process.is_alive():
+            process.close()
+
+
 class _WorkerDied(Exception):
     """The worker process ended (``cause`` says how)."""
 
@@ -158,6 +180,10 @@ class _Slot:
         self.worker = worker
         self._process: Any = None
         self._conn: Any = None
+        # The process that is to replace this one (with its pipe), started while the one it
+        # replaces still works: its start-up and warm-up (seconds) then cost the queries no
+        # wait when the replacement is due.
+        self._spare: tuple[Any, Any] | None = None
         self.warmed: dict[str, Any] | None = None   # the running worker's warm-up
         # A byte on it wakes the slot's wait (its tree is to be paused, or it is stopped).
         self._wake_reader, self._wake_writer = os.pipe()
@@ -214,6 +240,7 @@ class _Slot:
                     self._serve()
         finally:
             self._stop()
+            self._drop_spare()
             with pool._lock:
                 os.close(self._wake_reader)
                 os.close(self._wake_writer)
@@ -293,10 +320,18 @@ class _Slot:
                     shutil.rmtree(bag.parent, ignore_errors=True)   # before it is answered
                     with pool._lock:
                         pool._answered(worker, answered, result)
+                        due = worker.projections >= pool.max_projections - _spare_ahead(pool)
+                    cost.record('answered', bag.name, t=time.time())
+                    if due:
+                        self._start_spare()
                 elif isinstance(message, LeafResult):
                     result = self._published(bags[message.index], message)
                     with pool._lock:
                         pool._leaf_answered(worker, message.index, result)
+                        due = worker.projections >= pool.max_projections - _spare_ahead(pool)
+                    cost.record('answered', bags[message.index].name, t=time.time())
+                    if due:
+                        self._start_spare()
                 elif isinstance(message, TreeEnded):
                     with pool._lock:
                         pool._tree_ended(worker)
@@ -334,6 +369,10 @@ class _Slot:
             self._conn.send(command)
         except OSError:
             return False
+        if cost.PATH is not None:
+            for bag in ([command.bag] if isinstance(command, Project) else
+                        [bag for _, bag in command.leaves] if isinstance(command, Tree) else []):
+                cost.record('sent', bag, t=time.time())
         if isinstance(command, Project):   # when a worker was given work, for benchmarks
             _log.debug('projection sent to its worker: %s', os.path.basename(command.bag))
         return True
@@ -374,12 +413,13 @@ class _Slot:
             return
         self._kill()
         pool = self._pool
-        parent, child = pool._context.Pipe()
-        process = pool._context.Process(target=worker_main,
-                                        args=(child, pool.settings.to_dict(), pool.warm_up),
-                                        name='projection-worker', daemon=True)
-        process.start()
-        child.close()
+        spare, self._spare = self._spare, None
+        if spare is not None and spare[0].is_alive():
+            process, parent = spare   # started ahead: it may be warm already
+        else:
+            if spare is not None:
+                _close_process(*spare)
+            process, parent = self._new_process()
         self._process, self._conn = process, parent
         what = 'worker start-up'
         deadline = time.monotonic() + pool.startup_timeout
@@ -403,21 +443,33 @@ class _Slot:
             _log.warning('a projection worker could not warm up (its first projection '
                          'pays that): %s', self.warmed['error'])
 
+    def _new_process(self) -> tuple[Any, Any]:
+        """A worker process started (not waited for) and the parent's end of its pipe."""
+        pool = self._pool
+        parent, child = pool._context.Pipe()
+        process = pool._context.Process(target=worker_main,
+                                        args=(child, pool.settings.to_dict(), pool.warm_up),
+                                        name='projection-worker', daemon=True)
+        process.start()
+        child.close()
+        return process, parent
+
+    def _start_spare(self) -> None:
+        """Start the process that is to replace this slot's worker, unless it runs."""
+        if self._spare is None and not self._pool._closed:
+            self._spare = self._new_process()
+
+    def _drop_spare(self) -> None:
+        spare, self._spare = self._spare, None
+        if spare is not None:
+            _close_process(*spare)
+
     def _kill(self) -> None:
         process, conn = self._process, self._conn
         self._process = self._conn = None
         self.warmed = None
-        if conn is not None:
-            conn.close()
-        if process is not None:
-            if process.is_alive():
-                process.terminate()
-                process.join(2.0)
-            if process.is_alive():
-                process.kill()
-                process.join(2.0)
-            if not process.is_alive():
-                process.close()
+        if process is not None or conn is not None:
+            _close_process(process, conn)
 
     def _stop(self) -> None:
         if self._conn is not None and self._process is not None and self._process.is_alive():
