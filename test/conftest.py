@@ -26,16 +26,21 @@ if _WORKER is not None:
 SAME_PROCESS = {'test_ray_backend.py': 'ray', 'test_ray_service.py': 'ray'}
 
 
-def pytest_configure(config):
-    config.addinivalue_line('markers', 'xdist_group(name): tests that run in one process')
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """With ``--dist loadfile`` (tools/run_tests.sh) a file's tests run in one process, in
+    their order (its module fixtures, a test that runs first), and so do the
+    :data:`SAME_PROCESS` files together."""
+    if config.getvalue('dist') != 'loadfile':
+        return None
+    from xdist.scheduler import LoadFileScheduling
 
+    class _Files(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = super()._split_scope(nodeid)
+            return SAME_PROCESS.get(path.rsplit('/', 1)[-1], path)
 
-def pytest_collection_modifyitems(config, items):
-    """A file's tests run in one process, in their order (its module fixtures, a test that
-    runs first), with ``--dist loadgroup``."""
-    for item in items:
-        item.add_marker(pytest.mark.xdist_group(SAME_PROCESS.get(item.path.name,
-                                                                 str(item.path))))
+    return _Files(config, log)
 
 
 NODE_PARAMS = {

@@ -17,5 +17,5 @@ export PYTHONDONTWRITEBYTECODE=1
 paths=(test)
 for a in "$@"; do [ -e "${a%%::*}" ] && paths=(); done   # explicit test paths given
 parallel=()
-[ "$processes" -gt 1 ] && parallel=(-n "$processes" --dist loadgroup)
+[ "$processes" -gt 1 ] && parallel=(-n "$processes" --dist loadfile)
 exec pytest -p no:cacheprovider --import-mode=importlib -q "${parallel[@]}" "$@" "${paths[@]}"
