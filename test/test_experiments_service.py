@@ -148,7 +148,8 @@ def test_a_pancake_made_from_a_pours_particles_turns_at_a_small_angle_only(call)
     # stayed on the pan, turn it with the spatula.
     sols = ask(call, '''
         make_projection(pouring, pour,
-                        [(_, angle, [2.14]), (_, time, [0.5]), (_, position, [0.0])], PourTL),
+                        [(_, angle, [2.14]), (_, time, [0.5]), (_, position, [0.0])], 600.0,
+                        PourTL),
         quantity(particles_on(pancake_maker1), N, PourTL),
         quantity(particles_on_positions(pancake_maker1), Points, PourTL),
         create_scenario(S),
