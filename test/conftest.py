@@ -1,6 +1,7 @@
 """Fixtures: a real projection_server node in its own process, and real rclpy clients.
 
-tools/run_tests.sh gives each run its own ROS_DOMAIN_ID with loopback-only discovery.
+tools/run_tests.sh gives each run its own ROS_DOMAIN_ID with loopback-only discovery, and
+runs the suite in two processes (pytest-xdist); each process has a domain of its own.
 """
 
 from __future__ import annotations
@@ -11,6 +12,36 @@ import threading
 import time
 
 import pytest
+
+# The process's index under pytest-xdist ('gw0' -> 0); None when pytest runs alone.
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER')
+if _WORKER is not None:
+    # The run's domain plus the index (tools/run_tests.sh leaves room for it): nodes of
+    # the same name in the two processes never see each other. Set before rclpy starts,
+    # and inherited by every node and script a test starts.
+    os.environ['ROS_DOMAIN_ID'] = str(int(os.environ.get('ROS_DOMAIN_ID', '0'))
+                                      + int(_WORKER.removeprefix('gw')))
+
+# Files whose tests share a process: the Ray backend's look at the machine's Ray actors.
+SAME_PROCESS = {'test_ray_backend.py': 'ray', 'test_ray_service.py': 'ray'}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """With ``--dist loadfile`` (tools/run_tests.sh) a file's tests run in one process, in
+    their order (its module fixtures, a test that runs first), and so do the
+    :data:`SAME_PROCESS` files together."""
+    if config.getvalue('dist') != 'loadfile':
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class _Files(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = super()._split_scope(nodeid)
+            return SAME_PROCESS.get(path.rsplit('/', 1)[-1], path)
+
+    return _Files(config, log)
+
 
 NODE_PARAMS = {
     'default_timeout': 5.0,
@@ -30,11 +61,18 @@ def rclpy_context():
 
 @pytest.fixture(scope='session')
 def server(rclpy_context, tmp_path_factory):
-    """Start the node; yield its name. Its log is kept in the test's tmp dir."""
+    """Start the node; yield its name. Its log is kept in the test's tmp dir. Under
+    pytest-xdist the processes' nodes share one bag directory: a projection one made is not
+    made again by the other (the bag store is safe across processes)."""
     from projection_server.client.launcher import node_command, NodeProcess
     name = 'projection_server'
     log = tmp_path_factory.mktemp('node') / 'node.log'
-    params = {**NODE_PARAMS, 'bag_dir': str(tmp_path_factory.mktemp('bags'))}
+    if _WORKER is None:
+        bags = tmp_path_factory.mktemp('bags')
+    else:   # beside the processes' own temporary directories
+        bags = tmp_path_factory.getbasetemp().parent / 'session_bags'
+        bags.mkdir(exist_ok=True)
+    params = {**NODE_PARAMS, 'bag_dir': str(bags)}
     with NodeProcess(node_command(name, params), log) as proc:
         proc.wait_for_service(f'/{name}/query')
         yield f'/{name}'

@@ -11,9 +11,9 @@ A query on a page is one of:
 Each has its check below, written from what its page says of its answer; a query without a
 check, a check without a query, or an unnamed Prolog block on a site page fails. A query
 shown twice (the README's and a tutorial's) runs once. The queries run against the
-session's node, so a projection of a named scenario (``grasping``, ``pouring``, ...) that
-another test made is not made again; a scenario a query creates has a name of its own, so
-its projections are made anew.
+session's node, so a projection that another test made is not made again: of a named
+scenario (``grasping``, ``pouring``, ...), and of a scenario a query creates with the
+content of another test's (a projection's key is its scenario's content, not its name).
 """
 
 from __future__ import annotations

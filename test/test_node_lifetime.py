@@ -29,7 +29,7 @@ print('ended', flush=True)
 '''
 POURS = ('make_projection(pouring, pour, [(A, angle, [1.84, 1.99, 2.14]), '
          '(T, time, [1.0, 2.0, 3.0]), (P, position, [-0.09, 0.0, 0.03])], _)')
-GONE_WITHIN = 8.0   # s
+GONE_WITHIN = 30.0   # s: a loaded machine's margin; an orphan lives on
 
 
 def _alive(pid: int) -> bool:

@@ -67,7 +67,7 @@ def test_a_cancelled_goal_stops_and_frees_its_engine(prolog):
     assert 2 <= len(result.solutions) < 8 and len(feedback) < 8
     assert stopped < 15.0, stopped   # a loose bound: bench/project_action.py measures it
     # The query's engine is released by its own thread, just after the result went out.
-    free_by = time.monotonic() + 5.0
+    free_by = time.monotonic() + 30.0   # a loaded machine's margin
     while json.loads(_ping(prolog))['engines'] and time.monotonic() < free_by:
         time.sleep(0.05)
     assert json.loads(_ping(prolog))['engines'] == 0

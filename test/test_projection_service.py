@@ -172,3 +172,35 @@ def test_the_projection_asked_for_is_made_before_the_prefetched_ones(client):
     made = [os.stat(os.path.join(s['Bag'], 'metadata.yaml')).st_mtime_ns
             for s in (first, second)]
     assert made[0] < made[1]
+
+
+def test_scenarios_of_the_same_content_share_a_bag_whose_info_names_the_first(call):
+    """A projection's key is its scenario's content, not its name: two created scenarios
+    with the same entities find one bag, whose ``/projection/info`` (and so the timeline's
+    ``meta``) names the scenario it was made for; a changed property is another bag."""
+    from projection_server.bags.reader import read_bag
+
+    # A force no other test projects: the first scenario's bag is made here.
+    r, sols = ask(call, '''
+        create_scenario(A), add_to_scenario(A, [kitchen_env, pr2_robot, egg1]),
+        create_scenario(B), add_to_scenario(B, [kitchen_env, pr2_robot, egg1]),
+        copy_scenario(B, C), scenario_set_property(C, egg1, mass, 0.07),
+        make_projection(A, grasp_object, [(_, force, [6.37])], TA),
+        make_projection(B, grasp_object, [(_, force, [6.37])], TB),
+        make_projection(C, grasp_object, [(_, force, [6.37])], TC),
+        maplist([TL, Bag-Key-Name]>>( timeline_property(TL, meta(M)), get_dict(bag, M, Bag),
+                                      get_dict(job_key, M, Key), get_dict(scenario, M, Name) ),
+                [TA, TB, TC], [MA, MB, MC]),
+        findall(E, occurs(E, _, TA), EA), findall(E, occurs(E, _, TB), EB)''', mode=Q.ONCE)
+    assert r.ok, r.message
+    s = sols[0]
+    (bag_a, key_a, name_a), (bag_b, key_b, name_b), (bag_c, key_c, name_c) = (
+        (m['args'][0]['args'][0], m['args'][0]['args'][1], m['args'][1])
+        for m in (s['MA'], s['MB'], s['MC']))
+    assert s['A'] != s['B']
+    assert bag_a == bag_b != bag_c and key_a == key_b != key_c
+    assert name_a == name_b == s['A'] and name_c == s['C']
+    assert s['EA'] == s['EB']
+    [(_, _, info)] = list(read_bag(bag_b, ['/projection/info']))
+    assert info.scenario_name == s['A']
+    assert json.loads(info.scenario_json)['name'] == s['A']

@@ -135,7 +135,7 @@ def test_a_query_that_swallows_its_time_limit_is_abandoned_and_aborted(call):
     r = query(call, swallow, timeout=0.5)
     assert not r.ok and r.error_kind == 'timeout' and 'abandoned' in r.message
     assert query(call, 'X = 1').ok
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + 30   # a loaded machine's margin: never, if it leaked
     while json.loads(call(Trigger, 'ping', Trigger.Request()).message)['abandoned']:
         assert time.monotonic() < deadline, 'the abandoned engine was never released'
         time.sleep(0.2)

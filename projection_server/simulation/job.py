@@ -49,9 +49,9 @@ def code_version() -> str:
     return f'{version}+{digest.hexdigest()[:16]}'
 
 
-# The canonical JSON of the scenarios parse_scenario accepted last (oldest first), and the
-# model files each names.
-_VALID_SCENARIOS: dict[str, tuple[str, ...]] = {}
+# The canonical JSON of the scenarios parse_scenario accepted last (oldest first), the
+# model files each names and its content's canonical JSON (:func:`_content`).
+_VALID_SCENARIOS: dict[str, tuple[tuple[str, ...], str]] = {}
 _VALID_LOCK = threading.Lock()
 
 
@@ -88,12 +88,14 @@ class Job:
         # A JSON round trip drops janus/tuple types and fails early on non-JSON data.
         text = canonical_json(scenario)
         with _VALID_LOCK:   # queries check their jobs from threads of their own
-            paths = _VALID_SCENARIOS.get(text)
-            if paths is None:   # a query's projections share their scenario
-                paths = tuple(model_files(parse_scenario(scenario)))
+            known = _VALID_SCENARIOS.get(text)
+            if known is None:   # a query's projections share their scenario
+                known = (tuple(model_files(parse_scenario(scenario))),
+                         _content(json.loads(text)))
                 if len(_VALID_SCENARIOS) >= 64:
                     del _VALID_SCENARIOS[next(iter(_VALID_SCENARIOS))]
-                _VALID_SCENARIOS[text] = paths
+                _VALID_SCENARIOS[text] = known
+        paths, content = known
         files = {path: assets.checked(path) for path in paths}
         unit = get_program(program)
         values = unit.check(params if params is not None else {})
@@ -105,12 +107,17 @@ class Job:
             raise ProjectionError(ErrorKind.INVALID_PARAMETERS,
                                   f'{program} is a named program: it takes no plan')
         job = cls(json.loads(text), program, values, chosen, plan=plan, files=files)
-        object.__setattr__(job, '_scenario_json', text)   # what the keys are made of
+        object.__setattr__(job, '_scenario_json', text)
+        object.__setattr__(job, '_content_json', content)   # what the keys are made of
         return job
 
     @functools.cached_property
     def _scenario_json(self) -> str:
         return canonical_json(self.scenario)
+
+    @functools.cached_property
+    def _content_json(self) -> str:
+        return _content(self.scenario)
 
     def settings(self, settings: Settings) -> Settings:
         """The settings this projection runs with, given those of the settings file."""
@@ -129,7 +136,7 @@ class Job:
         setup = get_program(self.program).setup(self.params)
         if setup is None:
             return None
-        parts = {'scenario': self._scenario_json, 'program': canonical_json(self.program),
+        parts = {'scenario': self._content_json, 'program': canonical_json(self.program),
                  'setup': canonical_json(setup),
                  'settings': settings.projection_json(self.program, self.physics),
                  **self._files_part()}
@@ -140,8 +147,12 @@ class Job:
     def key(self, settings: Settings) -> str:
         """Content hash of job, its settings, the code version and the content of its model
         files: the cache key and the bag's name. Physics chosen by the query count as what
-        they amount to, so choosing the program's own settings finds the same bag."""
-        parts = {'scenario': self._scenario_json, 'program': canonical_json(self.program),
+        they amount to, so choosing the program's own settings finds the same bag. The
+        scenario counts by its content, not its name: a created scenario (``scenario_N``)
+        with the entities of another, or of a knowledge base scenario, is the same
+        projection, and finds the bag the first one made (whose ``/projection/info``
+        names that first scenario)."""
+        parts = {'scenario': self._content_json, 'program': canonical_json(self.program),
                  'params': canonical_json(self.params),
                  'settings': settings.projection_json(self.program, self.physics),
                  'code': canonical_json(code_version()), **self._files_part()}
@@ -159,6 +170,12 @@ def _check_engine(engine: str, program: str, scenario_json: str) -> None:
     from projection_server.simulation import engines
 
     engines.check(engine, program, parse_scenario(json.loads(scenario_json)))
+
+
+def _content(scenario: dict[str, Any]) -> str:
+    """The canonical JSON of a scenario description without its name: what the simulation
+    is built from (the entities, a robot world's snapshot)."""
+    return canonical_json({k: v for k, v in scenario.items() if k != 'name'})
 
 
 def _assembled(parts: dict[str, str]) -> str:

@@ -97,6 +97,8 @@ def test_fuzzed_requests_are_answered_within_their_limit(call, text, mode, timeo
     took = time.monotonic() - started
     limit = timeout if 0 < timeout <= 3600 else 5.0  # the test node's default_timeout
     assert r.ok or r.error_kind, r
+    # The margin is a loaded machine's (DDS, the node's threads), well below the call's
+    # 30 s: a query that ignored its limit would not be answered in time.
     assert took < limit * (max_solutions if mode == Q.ALL_SOLUTIONS and timeout > 0 else 1) \
-        + 3.0 or r.error_kind == 'timeout', (text[:80], took)
+        + 15.0 or r.error_kind == 'timeout', (text[:80], took)
     assert query(call, 'X = 1').ok
