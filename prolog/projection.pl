@@ -720,9 +720,11 @@ projection_check_quantity(Scenario, Quantity, Pred) :-
 
 %!  projection_default_timeout(-Seconds) is det.
 %
-%   Wall-clock limit of one simulation for make_projection/4.
+%   Wall-clock limit of one simulation for make_projection/4: 300 s. A pour
+%   takes about 30 s on a quiet core, and a machine shared with other work may
+%   take several times as long; the query's own time limit bounds the whole.
 
-projection_default_timeout(60).
+projection_default_timeout(300).
 
 :- multifile sandbox:safe_primitive/1.
 
