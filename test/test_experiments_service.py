@@ -91,7 +91,7 @@ def test_a_property_the_simulator_does_not_build_from_is_refused(call, entity, k
 
 
 # The pours below take each projection's time limit as 600 s (make_projection/5): the
-# default 60 s of wall-clock time is not meant for a loaded machine's 1 s holds.
+# default limit of wall-clock time is not meant for a loaded machine's 1 s holds.
 
 
 def test_pouring_at_a_larger_angle_puts_more_on_the_pan_and_a_centred_pour_lands_on_it(call):

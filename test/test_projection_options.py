@@ -22,13 +22,16 @@ def timeout(prolog, program: str, options: str) -> float:
     )['T']
 
 
-def test_the_default_limit_is_60_s(prolog):
-    assert timeout(prolog, 'grasp_object', '[]') == 60
+DEFAULT = 300   # s, projection_default_timeout/1
+
+
+def test_the_default_limit_is_300_s(prolog):
+    assert timeout(prolog, 'grasp_object', '[]') == DEFAULT
 
 
 def test_finer_physics_multiply_the_default_limit_by_their_cost(prolog):
     assert timeout(prolog, 'grasp_object',
-                   '[physics(_{rate_hz: 960, solver_iterations: 400})]') == 60 * 4 * 4
+                   '[physics(_{rate_hz: 960, solver_iterations: 400})]') == DEFAULT * 4 * 4
     # the program's own settings are the base: the turn runs with fewer iterations
     own = prolog.query_once('projection_physics_setting(turn_pancake, solver_iterations, S), '
                             'get_dict(default, S, D)')['D']
@@ -36,12 +39,12 @@ def test_finer_physics_multiply_the_default_limit_by_their_cost(prolog):
                              'get_dict(default, S, D)')['D']
     assert own < 100
     assert timeout(prolog, 'turn_pancake',
-                   f'[physics(_{{rate_hz: {4 * rate}, solver_iterations: {4 * own}}})]') == 60 * 16
-    assert timeout(prolog, 'plan', '[physics(_{rate_hz: 480})]') == 120
+                   f'[physics(_{{rate_hz: {4 * rate}, solver_iterations: {4 * own}}})]') == DEFAULT * 16
+    assert timeout(prolog, 'plan', '[physics(_{rate_hz: 480})]') == DEFAULT * 2
 
 
 def test_coarser_physics_keep_the_default_and_a_given_limit_is_kept(prolog):
-    assert timeout(prolog, 'grasp_object', '[physics(_{rate_hz: 120})]') == 60
+    assert timeout(prolog, 'grasp_object', '[physics(_{rate_hz: 120})]') == DEFAULT
     assert timeout(prolog, 'grasp_object', '[timeout(5), physics(_{rate_hz: 960})]') == 5
 
 
