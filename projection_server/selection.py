@@ -19,7 +19,11 @@ Neither rule depends on the cells' order. Choosing stops when one cell is left, 
 every world for as many worlds as the sign test needs to part two cells, and every other
 survivor is observed to be worse than them by more than the indifference zone. More
 worlds of the same kind would hardly change the choice; the certificate, on fresh worlds,
-is what proves it.
+is what proves it. A rule that takes an edge of the equals (``prefer``, ``near``) takes the
+one cell of them that more worlds are likeliest to part from the rest (the gentlest grip is
+the first to slip), so under it a settled choosing goes on until the leaders have agreed in
+as many worlds as the certificate has (``settle``), so that the choice has held in as many
+worlds as its certificate will ask of it.
 
 :func:`choose` then takes the *equals*, the survivors whose observed probability is within
 the indifference zone D of the best's, and picks one by a rule (:data:`RULES`), and
@@ -71,8 +75,9 @@ def first_round(cells: int, confidence: float, risk: float, batch: int) -> int:
 
 
 def step(outcomes: Sequence[Sequence[int] | None], confidence: float, risk: float,
-         indifference: float, max_worlds: int) -> dict[str, Any]:
-    """The cells to eliminate after a round, and whether choosing stops (module doc)."""
+         indifference: float, max_worlds: int, settle: int = 0) -> dict[str, Any]:
+    """The cells to eliminate after a round, and whether choosing stops (module doc);
+    ``settle``: the fewest worlds of a settled stop, beyond those the sign test needs."""
     alive = [c for c, o in enumerate(outcomes) if o is not None]
     n = len(outcomes[alive[0]])
     alpha = _alpha(len(outcomes), confidence)
@@ -97,7 +102,7 @@ def step(outcomes: Sequence[Sequence[int] | None], confidence: float, risk: floa
     settled = (all(outcomes[c] == outcomes[leaders[0]] for c in leaders)
                and all(rate[c] < top - indifference for c in left if c not in leaders))
     separable = math.ceil(math.log2(1.0 / alpha)) if len(outcomes) > 1 else 0
-    stop = len(left) <= 1 or n >= max_worlds or (settled and n >= separable)
+    stop = len(left) <= 1 or n >= max_worlds or (settled and n >= max(separable, settle))
     return {'eliminate': sorted(eliminate), 'stop': stop}
 
 

@@ -46,7 +46,8 @@ each at the confidence with Bonferroni's correction over the cells.  When one
 cell is left, at samples(N) worlds, or when the leading cells have agreed in
 every world for as long as the test needs to part two cells and every other
 survivor is observed to be worse by more than the indifference zone, choosing
-stops.  The survivors whose observed probability is within the indifference
+stops; under a `prefer` or `near` rule, which takes an edge of the equals, the
+leaders must have agreed in as many worlds as the certificate has.  The survivors whose observed probability is within the indifference
 zone of the best's are equals; a rule picks one of them.
 
 Certifying: the chosen cell is projected in certify(M) fresh worlds, worlds
@@ -134,7 +135,10 @@ robust_parametrization(Scenario, Program, Params, Options, TL, Condition, Best) 
     py_call('projection_server.selection':first_round(K, C, A, Size0), First),
     Run = run(Scenario, Program, Params, Vars, [seed(Seed)|Pass], TL, Condition, Prefer),
     maplist([_, cell([], [])]>>true, Cells, States0),
-    choose_rounds(Run, Cells, s(C, A, D, N, Batch), 0, First, States0, States, 0, Spent0),
+    % An edge rule's settled stop waits for as many worlds as the certificate.
+    (   Rule == margin -> Settle = 0 ; Settle = M ),
+    choose_rounds(Run, Cells, s(C, A, D, N, Batch, Settle), 0, First, States0, States, 0,
+                  Spent0),
     maplist(state_outcomes, States, Outcomes),
     maplist(state_mean, States, Means),
     py_call('projection_server.selection':choose(Outcomes, Cells, D, Rule, near=Near,
@@ -259,7 +263,7 @@ param_parts(Param, Var, Name, Range) :-
 % eliminate, and go on until selection:step/4 stops.  A cell's state is
 % cell(Hits, Quantities), one of each per world, or `none` once eliminated.
 choose_rounds(Run, Cells, S, From, Size, States0, States, Spent0, Spent) :-
-    S = s(C, A, D, N, Batch),
+    S = s(C, A, D, N, Batch, Settle),
     To is min(N, From + Size),
     findall(Values, ( nth0(I, Cells, Values), nth0(I, States0, cell(_, _)) ), Alive),
     round(Run, Alive, From, To, Results),
@@ -267,7 +271,7 @@ choose_rounds(Run, Cells, S, From, Size, States0, States, Spent0, Spent) :-
     length(Results, Made),
     Spent1 is Spent0 + Made,
     maplist(state_outcomes, States1, Outcomes),
-    py_call('projection_server.selection':step(Outcomes, C, A, D, N), Step),
+    py_call('projection_server.selection':step(Outcomes, C, A, D, N, Settle), Step),
     get_dict(eliminate, Step, Eliminate),
     foldl(eliminate_cell, Eliminate, States1, States2),
     (   get_dict(stop, Step, @(true))

@@ -65,6 +65,16 @@ def test_choosing_goes_on_while_the_leaders_disagree_and_stops_when_settled():
     assert selection.step(disagree, 0.95, 0.05, 0.05, n)['stop']   # the cap
 
 
+def test_an_edge_rule_waits_as_many_agreeing_worlds_as_its_certificate_has():
+    # 2..5 N agreed in 10 worlds: settled for the margin rule; the gentlest of them may still
+    # slip in the 11th, and a prefer or near rule would take it.
+    agree = [None] + [[1] * 10 for _ in range(4)]
+    assert selection.step(agree, 0.95, 0.1, 0.05, 30)['stop']
+    assert not selection.step(agree, 0.95, 0.1, 0.05, 30, 29)['stop']
+    agree29 = [None] + [[1] * 29 for _ in range(4)]
+    assert selection.step(agree29, 0.95, 0.1, 0.05, 30, 29)['stop']
+
+
 def test_the_rules_among_equals():
     # forces 1..5 N: 1 N eliminated, 5 N failed once, 2, 3, 4 N equals
     outcomes = [None, [1] * 8, [1] * 8, [1] * 8, [1] * 7 + [0]]
