@@ -23,7 +23,9 @@ is what proves it. A rule that takes an edge of the equals (``prefer``, ``near``
 one cell of them that more worlds are likeliest to part from the rest (the gentlest grip is
 the first to slip), so under it a settled choosing goes on until the leaders have agreed in
 as many worlds as the certificate has (``settle``), so that the choice has held in as many
-worlds as its certificate will ask of it.
+worlds as its certificate will ask of it. Only the two leaders the rule ranks first go on
+(``ranked``); the others are *parked* with the worlds they have, to be taken only if both
+fail.
 
 :func:`choose` then takes the *equals*, the survivors whose observed probability is within
 the indifference zone D of the best's, and picks one by a rule (:data:`RULES`), and
@@ -75,9 +77,12 @@ def first_round(cells: int, confidence: float, risk: float, batch: int) -> int:
 
 
 def step(outcomes: Sequence[Sequence[int] | None], confidence: float, risk: float,
-         indifference: float, max_worlds: int, settle: int = 0) -> dict[str, Any]:
-    """The cells to eliminate after a round, and whether choosing stops (module doc);
-    ``settle``: the fewest worlds of a settled stop, beyond those the sign test needs."""
+         indifference: float, max_worlds: int, settle: int = 0,
+         ranked: Sequence[int] = ()) -> dict[str, Any]:
+    """The cells to eliminate after a round, those to park, and whether choosing stops
+    (module doc). ``settle``: the fewest worlds of a settled stop, beyond those the sign test
+    needs; ``ranked``: the equals in the rule's order (:func:`choose`), which an edge rule
+    gives with its ``settle``."""
     alive = [c for c, o in enumerate(outcomes) if o is not None]
     n = len(outcomes[alive[0]])
     alpha = _alpha(len(outcomes), confidence)
@@ -103,7 +108,11 @@ def step(outcomes: Sequence[Sequence[int] | None], confidence: float, risk: floa
                and all(rate[c] < top - indifference for c in left if c not in leaders))
     separable = math.ceil(math.log2(1.0 / alpha)) if len(outcomes) > 1 else 0
     stop = len(left) <= 1 or n >= max_worlds or (settled and n >= max(separable, settle))
-    return {'eliminate': sorted(eliminate), 'stop': stop}
+    park: list[int] = []
+    if settled and n >= separable and not stop and ranked:
+        keep = [c for c in ranked if c in leaders][:2]
+        park = [c for c in leaders if c not in keep]
+    return {'eliminate': sorted(eliminate), 'park': sorted(park), 'stop': stop}
 
 
 def choose(outcomes: Sequence[Sequence[int] | None], values: Sequence[Sequence[float]],
@@ -120,8 +129,9 @@ def choose(outcomes: Sequence[Sequence[int] | None], values: Sequence[Sequence[f
       one per cell, None for eliminated ones).
 
     Ties left go to ``margin``, then to the equal nearest the equals' centre, then to the
-    smallest values: never to the grid's order. Returns the cell, the equals and the
-    observed probability of each survivor.
+    smallest values: never to the grid's order. Returns the cell, the equals, the equals
+    in the rule's order (``ranked``, the cell first) and the observed probability of each
+    survivor. A cell's outcomes may be fewer than others' (a parked one).
     """
     alive = [c for c, o in enumerate(outcomes) if o is not None]
     rate = {c: sum(outcomes[c]) / len(outcomes[c]) for c in alive}
@@ -147,9 +157,9 @@ def choose(outcomes: Sequence[Sequence[int] | None], values: Sequence[Sequence[f
         return (round(first, 12), round(margin[c], 12), -distance(values[c], centre),
                 [-x for x in values[c]])
 
-    chosen = max(equals, key=key)
-    return {'cell': chosen, 'equals': sorted(equals), 'rates': [rate.get(c) for c in
-                                                                range(len(outcomes))]}
+    ranked = sorted(equals, key=key, reverse=True)
+    return {'cell': ranked[0], 'equals': sorted(equals), 'ranked': ranked,
+            'rates': [rate.get(c) for c in range(len(outcomes))]}
 
 
 def certificate(successes: int, n: int, confidence: float, risk: float) -> dict[str, Any]:

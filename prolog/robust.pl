@@ -47,7 +47,9 @@ cell is left, at samples(N) worlds, or when the leading cells have agreed in
 every world for as long as the test needs to part two cells and every other
 survivor is observed to be worse by more than the indifference zone, choosing
 stops; under a `prefer` or `near` rule, which takes an edge of the equals, the
-leaders must have agreed in as many worlds as the certificate has.  The survivors whose observed probability is within the indifference
+leaders must have agreed in as many worlds as the certificate has, and only
+the two the rule ranks first go on to them (the others keep the worlds they
+have, to be taken only if both fail).  The survivors whose observed probability is within the indifference
 zone of the best's are equals; a rule picks one of them.
 
 Certifying: the chosen cell is projected in certify(M) fresh worlds, worlds
@@ -137,9 +139,10 @@ robust_parametrization(Scenario, Program, Params, Options, TL, Condition, Best) 
     maplist([_, cell([], [])]>>true, Cells, States0),
     % An edge rule's settled stop waits for as many worlds as the certificate.
     (   Rule == margin -> Settle = 0 ; Settle = M ),
-    choose_rounds(Run, Cells, s(C, A, D, N, Batch, Settle), 0, First, States0, States, 0,
-                  Spent0),
-    maplist(state_outcomes, States, Outcomes),
+    Choose = choose(Cells, D, Rule, Near, Sign),
+    choose_rounds(Run, Cells, s(C, A, D, N, Batch, Settle, Choose), 0, First, States0,
+                  States, 0, Spent0),
+    maplist(state_all_outcomes, States, Outcomes),
     maplist(state_mean, States, Means),
     py_call('projection_server.selection':choose(Outcomes, Cells, D, Rule, near=Near,
                                                  quantities=Means, sign=Sign), Choice),
@@ -263,7 +266,7 @@ param_parts(Param, Var, Name, Range) :-
 % eliminate, and go on until selection:step/4 stops.  A cell's state is
 % cell(Hits, Quantities), one of each per world, or `none` once eliminated.
 choose_rounds(Run, Cells, S, From, Size, States0, States, Spent0, Spent) :-
-    S = s(C, A, D, N, Batch, Settle),
+    S = s(C, A, D, N, Batch, Settle, Choose),
     To is min(N, From + Size),
     findall(Values, ( nth0(I, Cells, Values), nth0(I, States0, cell(_, _)) ), Alive),
     round(Run, Alive, From, To, Results),
@@ -271,15 +274,28 @@ choose_rounds(Run, Cells, S, From, Size, States0, States, Spent0, Spent) :-
     length(Results, Made),
     Spent1 is Spent0 + Made,
     maplist(state_outcomes, States1, Outcomes),
-    py_call('projection_server.selection':step(Outcomes, C, A, D, N, Settle), Step),
+    ranked(Settle, Choose, States1, Ranked),
+    py_call('projection_server.selection':step(Outcomes, C, A, D, N, Settle, Ranked), Step),
     get_dict(eliminate, Step, Eliminate),
-    foldl(eliminate_cell, Eliminate, States1, States2),
+    get_dict(park, Step, Park),
+    foldl(eliminate_cell, Eliminate, States1, States1a),
+    foldl(park_cell, Park, States1a, States2),
     (   get_dict(stop, Step, @(true))
     ->  States = States2, Spent = Spent1
     ;   aggregate_all(count, member(cell(_, _), States2), Left),
         round_size(Batch, Left, Next),
         choose_rounds(Run, Cells, S, To, Next, States2, States, Spent1, Spent)
     ).
+
+% ranked(+Settle, +Choose, +States, -Ranked): the equals in the rule's order,
+% which step/7 parks by; none for the margin rule (Settle 0), which parks none.
+ranked(0, _, _, []) :- !.
+ranked(_, choose(Cells, D, Rule, Near, Sign), States, Ranked) :-
+    maplist(state_all_outcomes, States, Outcomes),
+    maplist(state_mean, States, Means),
+    py_call('projection_server.selection':choose(Outcomes, Cells, D, Rule, near=Near,
+                                                 quantities=Means, sign=Sign), Choice),
+    get_dict(ranked, Choice, Ranked).
 
 % round_size(+Batch, +Alive, -Worlds): a round's worlds: the given batch, or by
 % default as few as keep every worker busy, twice the workers' projections.
@@ -303,6 +319,7 @@ round(Run, Alive, From, To, Results) :-
             Results).
 
 add_round(_, _, none, none) :- !.
+add_round(_, _, parked(Hits, Qs), parked(Hits, Qs)) :- !.
 add_round(Results, Values, cell(Hits0, Qs0), cell(Hits, Qs)) :-
     findall(H-Q, member(Values-(H-Q), Results), Pairs),
     pairs_keys_values(Pairs, NewHits, NewQs),
@@ -336,10 +353,24 @@ eliminate_cell(I, States0, States) :-
     append(Before, [_|After], States0),
     append(Before, [none|After], States).
 
-state_outcomes(none, @(none)).
-state_outcomes(cell(Hits, _), Hits).
+park_cell(I, States0, States) :-
+    nth0(I, States0, cell(Hits, Qs)),
+    length(Before, I),
+    append(Before, [_|After], States0),
+    append(Before, [parked(Hits, Qs)|After], States).
+
+% state_outcomes(+State, -Outcomes): a cell's outcomes while it is in the race;
+% state_all_outcomes/2 a parked cell's too, with the worlds it has.
+state_outcomes(cell(Hits, _), Hits) :- !.
+state_outcomes(_, @(none)).
+
+state_all_outcomes(parked(Hits, _), Hits) :- !.
+state_all_outcomes(State, Outcomes) :-
+    state_outcomes(State, Outcomes).
 
 state_mean(none, @(none)).
+state_mean(parked(_, Qs), Mean) :- !,
+    state_mean(cell(_, Qs), Mean).
 state_mean(cell(_, Qs), Mean) :-
     sum_list(Qs, Sum),
     length(Qs, L),

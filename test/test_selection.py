@@ -38,7 +38,7 @@ def test_the_sign_test_counts_only_the_worlds_where_two_cells_differ():
 def test_a_cell_that_fails_everywhere_goes_after_the_first_round_by_the_risk_rule():
     first = selection.first_round(2, 0.95, 0.05, 4)
     outcomes = [[0] * first, [1] * first]
-    assert selection.step(outcomes, 0.95, 0.05, 0.05, 30) == {'eliminate': [0], 'stop': True}
+    assert selection.step(outcomes, 0.95, 0.05, 0.05, 30) == {'eliminate': [0], 'park': [], 'stop': True}
 
 
 def test_paired_worlds_separate_cells_that_independent_counts_would_not():
@@ -73,6 +73,23 @@ def test_an_edge_rule_waits_as_many_agreeing_worlds_as_its_certificate_has():
     assert not selection.step(agree, 0.95, 0.1, 0.05, 30, 29)['stop']
     agree29 = [None] + [[1] * 29 for _ in range(4)]
     assert selection.step(agree29, 0.95, 0.1, 0.05, 30, 29)['stop']
+
+
+def test_an_edge_rule_parks_the_leaders_it_ranks_after_its_first_two():
+    forces = [[1.0], [2.0], [3.0], [4.0], [5.0]]
+    agree = [None] + [[1] * 10 for _ in range(4)]
+    # the gentlest first: the mean load grows with the force
+    ranked = selection.choose(agree, forces, 0.05, 'prefer', quantities=[None, 2, 3, 4, 5],
+                              sign=-1)['ranked']
+    assert ranked == [1, 2, 3, 4]
+    step = selection.step(agree, 0.95, 0.1, 0.05, 30, 29, ranked)
+    assert step['park'] == [3, 4] and not step['stop']
+    assert selection.step(agree, 0.95, 0.1, 0.05, 30)['park'] == []   # margin: none
+    # 2 N slipped in a later world: 3 N leads, and a parked 4 N is taken over 2 N
+    later = [None, [1] * 20 + [0] * 2, [1] * 22, [1] * 10, [1] * 10]
+    chosen = selection.choose(later, forces, 0.05, 'prefer', quantities=[None, 2, 3, 4, 5],
+                              sign=-1)
+    assert chosen['cell'] == 2 and chosen['ranked'] == [2, 3, 4]
 
 
 def test_the_rules_among_equals():
