@@ -101,12 +101,12 @@ class StandIn:
         return list(result.events), result.duration
 
 
-def nominal(c: Any, forces: list[float]) -> tuple[float, float, float]:
+def nominal(c: Any, forces: list[float], physics: str = '') -> tuple[float, float, float]:
     """(b): the gentlest force that lifts the egg whole in the belief's nominal world, on a
     fresh snapshot; (force, sense s, decide s)."""
     start = time.perf_counter()
     solutions = c.all(f'{SENSE}, make_projection(S, plan({PLAN.format(force="F")}), '
-                      f'[(F, force, {forces})], TL), ( {OK} -> Ok = 1 ; Ok = 0 )',
+                      f'[(F, force, {forces})], [{physics}], TL), ( {OK} -> Ok = 1 ; Ok = 0 )',
                       timeout=600.0, max_solutions=1000)
     wall = time.perf_counter() - start
     ok = [float(s['F']) for s in solutions if int(s['Ok'])]
@@ -147,6 +147,9 @@ def main() -> None:
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--options', default='',
                         help="more options of (c)'s robust_parametrization/7, e.g. 'risk(0.1)'")
+    parser.add_argument('--physics', default='',
+                        help="the decisions' physics(Dict), e.g. '_{engine: mujoco}' (the "
+                             "stand-in's world stays PyBullet's)")
     parser.add_argument('--report', metavar='TRIALS_JSON',
                         help="only report the trials of an earlier run's trials.json")
     args = parser.parse_args()
@@ -161,7 +164,8 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix='bench_robot_loop_'))
     print(f'settings: {args.eggs} eggs from seed {args.seed}; belief {BELIEF}; truth '
           f'friction U({args.friction}), breaking force U({args.breaking_force}); forces '
-          f'{forces}; (c) options {args.options or "the defaults"}; {args.workers} workers; '
+          f'{forces}; (c) options {args.options or "the defaults"}; decisions\' physics '
+          f'{args.physics or "the defaults"}; {args.workers} workers; '
           f'{harness.machine()}', flush=True)
     standin_cmd = ['projection_standin_robot', '--ros-args',
                    '-p', f'friction_range:=[{args.friction}]',
@@ -180,9 +184,10 @@ def main() -> None:
             for i in range(args.eggs):
                 seed = args.seed + i
                 truth = robot.reset(seed)['object']['properties']
-                fb, sense_b, decide_b = nominal(c, forces)
-                fc, sense_c, decide_c, how = robust(c, forces, seed,
-                                                   f', {args.options}' if args.options else '')
+                physics = f'physics({args.physics})' if args.physics else ''
+                fb, sense_b, decide_b = nominal(c, forces, physics)
+                options = ''.join(f', {o}' for o in (args.options, physics) if o)
+                fc, sense_c, decide_c, how = robust(c, forces, seed, options)
                 row = {'seed': seed, 'truth': truth}
                 for name, force, sense, decide in (('b', fb, sense_b, decide_b),
                                                    ('c', fc, sense_c, decide_c)):
