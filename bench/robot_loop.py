@@ -1,7 +1,8 @@
 """The robot in the loop, for real over ROS 2: a robot program reads the stand-in robot's
 world, chooses a grip by projecting, executes it on the stand-in and records what happened.
 
-    tools/with_env.sh python bench/robot_loop.py [--eggs 100] [--seed 1]
+    tools/with_env.sh python bench/robot_loop.py [--eggs 100] [--seed 1] [--options OPTS]
+        [--physics DICT] [--report TRIALS_JSON ...]
 
 Two processes stand for the robot and its brain: ``projection_standin_robot`` (the world:
 a Panda and an egg in a PyBullet world of its own at 4x the projection's rate and solver
@@ -18,7 +19,9 @@ no topic) and ``projection_server``; this program talks to both over ROS 2 only.
    no harder than it must. (b) nominal: the least force that does so in the belief's
    nominal world (friction 0.3, breaking force 10 N, 60 g); (c) belief:
    ``robust_parametrization/7`` over the same forces with ``prefer(-max_load(egg1))`` (the
-   gentlest of the forces as probable as the best; its other defaults, seed i);
+   gentlest of the forces as probable as the best; its other defaults, seed i). Both
+   decide on the node's default engine, or on ``--physics`` (e.g. ``'_{engine: mujoco}'``:
+   the decisions on MuJoCo, the truth on the stand-in's PyBullet);
 3. act: each choice executed on the same egg (the stand-in reset with seed i before each),
    through its ``~/execute_plan`` action;
 4. record: an undesired outcome is a ``slip(egg1)`` or ``break(egg1)`` the stand-in saw.
@@ -150,11 +153,12 @@ def main() -> None:
     parser.add_argument('--physics', default='',
                         help="the decisions' physics(Dict), e.g. '_{engine: mujoco}' (the "
                              "stand-in's world stays PyBullet's)")
-    parser.add_argument('--report', metavar='TRIALS_JSON',
-                        help="only report the trials of an earlier run's trials.json")
+    parser.add_argument('--report', metavar='TRIALS_JSON', nargs='+',
+                        help="only report the trials of earlier runs' trials.json, together "
+                             "(runs of disjoint seeds, e.g. two halves run side by side)")
     args = parser.parse_args()
     if args.report:
-        report(json.loads(Path(args.report).read_text()))
+        report([t for f in args.report for t in json.loads(Path(f).read_text())])
         return
     forces = [float(f) for f in args.forces.split(',')]
     harness.ros_domain(200)
