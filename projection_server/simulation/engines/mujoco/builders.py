@@ -74,7 +74,7 @@ def environment(world: WorldSpec, entity: Entity) -> None:
 
 def floor(world: WorldSpec, entity: Entity) -> None:
     body = world.spec.worldbody.add_body(name=entity.name, pos=[0.0, 0.0, entity.pose.xyz[2]])
-    world.geom(body, entity.name, 'static', entity.properties['friction'],
+    world.geom(body, entity.name, 'static', entity.properties['friction'], tuned=True,
                type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0])
     _register(world, entity, True, Shape('box', (20.0, 20.0, 0.001), (0.5, 0.5, 0.5, 1.0)))
 
@@ -85,8 +85,8 @@ def table(world: WorldSpec, entity: Entity) -> None:
     position = [entity.pose.xyz[0], entity.pose.xyz[1], top(entity) - size[2] / 2]
     body = world.spec.worldbody.add_body(name=entity.name, pos=position,
                                          quat=_euler_quat((0.0, 0.0, entity.pose.rpy[2])))
-    world.geom(body, entity.name, 'static', p['friction'], type=mujoco.mjtGeom.mjGEOM_BOX,
-               size=[s / 2 for s in size])
+    world.geom(body, entity.name, 'static', p['friction'], tuned=True,
+               type=mujoco.mjtGeom.mjGEOM_BOX, size=[s / 2 for s in size])
     _register(world, entity, True, Shape('box', size, (0.6, 0.4, 0.2, 1.0)))
 
 
@@ -107,14 +107,32 @@ def egg(world: WorldSpec, entity: Entity) -> None:
                                          ipos=[0.0, 0.0, 0.0], iquat=[1.0, 0.0, 0.0, 0.0],
                                          explicitinertial=True)
     body.add_freejoint()
-    world.geom(body, entity.name, 'dynamic', p['friction'],
+    world.geom(body, entity.name, 'dynamic', p['friction'], tuned=True,
                type=mujoco.mjtGeom.mjGEOM_ELLIPSOID, size=list(semi))
     _register(world, entity, False, Shape('sphere', tuple(2 * s for s in semi), EGG_COLOR))
 
+    def tune(model: Any, scenario: Any) -> bool:
+        """The mass and inertia of this world's egg (its model may be another's)."""
+        mass = _own(scenario, entity.name).properties['mass']
+        body = model.body(entity.name).id
+        if model.body_mass[body] == mass:
+            return False
+        model.body_mass[body] = mass
+        model.body_inertia[body] = _ellipsoid_inertia(mass, *semi)
+        return True
+    world.tuners.append(tune)
+
     def after(physics: MujocoPhysics) -> None:
-        physics.models.append(EggShell(entity.name, semi, p.get('breaking_force'),
-                                       _remains(semi, p['mass'])))
+        own = _own(physics.scenario, entity.name).properties
+        physics.models.append(EggShell(entity.name, semi, own.get('breaking_force'),
+                                       _remains(semi, own['mass'])))
     world.after.append(after)
+
+
+def _own(scenario: Any, name: str) -> Entity:
+    """The entity ``name`` of ``scenario``: the world's own numbers (of
+    :data:`~.world.TUNED`), which the scenario its model was compiled from may not have."""
+    return next(e for e in scenario.entities if e.name == name)
 
 
 def _remains(semi: tuple[float, float, float], mass: float

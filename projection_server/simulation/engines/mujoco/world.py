@@ -46,6 +46,7 @@ one does not bounce).
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable, TYPE_CHECKING
 
@@ -57,8 +58,8 @@ if TYPE_CHECKING:
     from projection_server.settings import Settings
     from projection_server.simulation.scenario import Entity, Scenario
 
-__all__ = ['CONE', 'CONDIM', 'IMPRATIO', 'SOLREF', 'SOLIMP', 'TORSION_ARM', 'WorldSpec',
-           'build_world']
+__all__ = ['CONE', 'CONDIM', 'IMPRATIO', 'SOLREF', 'SOLIMP', 'TORSION_ARM', 'TUNED',
+           'WorldSpec', 'build_world']
 
 CONE = mujoco.mjtCone.mjCONE_ELLIPTIC
 IMPRATIO = 10.0
@@ -75,6 +76,7 @@ class _Geom:
     entity: str
     kind: str          # 'static', 'dynamic' or 'robot'
     friction: float
+    tuned: bool = False   # the friction is the entity's ``friction`` property
 
 
 @dataclass
@@ -87,14 +89,20 @@ class WorldSpec:
     tool_control: bool
     geoms: list[_Geom] = field(default_factory=list)
     after: list[Callable[[MujocoPhysics], None]] = field(default_factory=list)
+    # Set a compiled model's numbers from a scenario of the same shape (TUNED); True if
+    # they changed a body's mass (the model's mass-dependent constants are then set anew).
+    tuners: list[Callable[[Any, Scenario], bool]] = field(default_factory=list)
+    pairs: list[tuple[int, int]] = field(default_factory=list)   # geoms of each pair
     gravity: float | None = None
 
-    def geom(self, body: Any, entity: str, kind: str, friction: float, **attributes: Any
-             ) -> Any:
-        """A geom of ``entity`` on ``body``, colliding through the pairs of the world."""
+    def geom(self, body: Any, entity: str, kind: str, friction: float, tuned: bool = False,
+             **attributes: Any) -> Any:
+        """A geom of ``entity`` on ``body``, colliding through the pairs of the world;
+        ``tuned``: its friction is the entity's ``friction`` property (one of
+        :data:`TUNED`), which a model compiled for another value is given."""
         name = f'{entity}#{len(self.geoms)}'
         geom = body.add_geom(name=name, contype=0, conaffinity=0, **attributes)
-        self.geoms.append(_Geom(name, entity, kind, float(friction)))
+        self.geoms.append(_Geom(name, entity, kind, float(friction), tuned))
         return geom
 
     def adopt(self, geom: Any, entity: str, kind: str, friction: float) -> None:
@@ -106,10 +114,17 @@ class WorldSpec:
 
 def build_world(scenario: Scenario, settings: Settings, tool_control: bool = False
                 ) -> MujocoPhysics:
-    """A fresh world of ``scenario``: a copy of its compiled model (compiled once per
-    scenario and settings in a process: a query's parametrizations share it), its own
-    data, and what the builders bind to them."""
-    key = (repr(scenario), repr(settings.physics), tool_control)   # frozen dataclasses
+    """A fresh world of ``scenario``: a copy of its compiled model, its own data, and what
+    the builders bind to them.
+
+    A model is compiled once per scenario *shape* and settings in a process: scenarios that
+    differ only in properties of :data:`TUNED` (a query's parametrizations, a belief's
+    worlds) share it, each copy given its own scenario's numbers: the pairs' frictions, a
+    body's mass and inertia and the constants MuJoCo's compiler derives from the masses
+    (``mj_setConst``'s, and the mean mass and inertia that scale the solver's tolerance).
+    The copy is the model that compiling the scenario gives, bit for bit
+    (test/simulation/test_engines.py compares every field)."""
+    key = (repr(_shape(scenario)), repr(settings.physics), tool_control)
     compiled = _COMPILED.get(key)
     if compiled is None:
         compiled = _compile(scenario, settings, tool_control)
@@ -118,9 +133,10 @@ def build_world(scenario: Scenario, settings: Settings, tool_control: bool = Fal
         _COMPILED[key] = compiled
     else:
         _COMPILED[key] = _COMPILED.pop(key)   # the most recently used is kept longest
-    template, after = compiled
+    template, after, world = compiled
     model = copy.copy(template)   # a projection changes its model (motors, a broken egg)
     data = mujoco.MjData(model)
+    _tune(model, data, world, scenario)
     physics = MujocoPhysics(model, data, settings, scenario, tool_control)
     for bind in after:
         bind(physics)
@@ -130,12 +146,72 @@ def build_world(scenario: Scenario, settings: Settings, tool_control: bool = Fal
     return physics
 
 
-# (scenario, physics settings, tool control) -> (compiled model, the builders' binders)
-_COMPILED: dict[tuple[str, str, bool], tuple[Any, list[Callable[[MujocoPhysics], None]]]] = {}
+# Per object class, the properties that a compiled model holds only as numbers that
+# :func:`_tune` sets (or that MuJoCo's builders do not read): a scenario's shape is the
+# scenario without them. A builder of such a class reads them from the scenario the world
+# is built for (``physics.scenario``), never from the one its model was compiled from.
+TUNED: dict[str, frozenset[str]] = {
+    'egg': frozenset({'friction', 'mass', 'breaking_force', 'restitution',
+                      'rolling_friction', 'spinning_friction'}),
+    'table': frozenset({'friction', 'restitution'}),
+    'floor': frozenset({'friction', 'restitution'}),
+}
+
+
+def _shape(scenario: Scenario) -> Scenario:
+    """``scenario`` without the properties of :data:`TUNED`."""
+    entities = []
+    for entity in scenario.entities:
+        tuned = TUNED.get(entity.cls)
+        if tuned:
+            entity = dataclasses.replace(entity, properties={
+                k: v for k, v in entity.properties.items() if k not in tuned})
+        entities.append(entity)
+    return dataclasses.replace(scenario, entities=tuple(entities))
+
+
+def _tune(model: Any, data: Any, world: WorldSpec, scenario: Scenario) -> None:
+    """Give ``model`` (compiled from ``world``) the numbers of ``scenario`` (of the same
+    shape): set as the compiler sets them, in the same order of operations."""
+    entities = {entity.name: entity for entity in scenario.entities}
+    friction = [entities[g.entity].properties['friction'] if g.tuned else g.friction
+                for g in world.geoms]
+    pair_friction = model.pair_friction
+    for pair, (a, b) in enumerate(world.pairs):
+        mu = friction[a] * friction[b]
+        pair_friction[pair] = (mu, mu, mu * TORSION_ARM, 0.0, 0.0)
+    changed = False
+    for tune in world.tuners:
+        changed = tune(model, scenario) or changed
+    if not changed:
+        return
+    # What MuJoCo's compiler derives from the masses: mj_setConst's constants at qpos0,
+    # then (as its set0 does) the mean body mass and the mean of the mass matrix's diagonal.
+    mujoco.mj_setConst(model, data)
+    mean = 0.0
+    for body in range(1, model.nbody):
+        mean += float(model.body_mass[body])
+    model.stat.meanmass = mean / (model.nbody - 1)
+    data.qpos[:] = model.qpos0
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    mujoco.mj_crb(model, data)
+    inertia, rows, counts = data.M, model.M_rowadr, model.M_rownnz
+    mean = 0.0
+    for dof in range(model.nv):
+        mean += float(inertia[rows[dof] + counts[dof] - 1])
+    model.stat.meaninertia = mean / model.nv
+    mujoco.mj_resetData(model, data)
+
+
+# (scenario shape, physics settings, tool control) -> (compiled model, the builders'
+# binders, the world it was compiled from)
+_COMPILED: dict[tuple[str, str, bool],
+                tuple[Any, list[Callable[[MujocoPhysics], None]], WorldSpec]] = {}
 
 
 def _compile(scenario: Scenario, settings: Settings, tool_control: bool
-             ) -> tuple[Any, list[Callable[[MujocoPhysics], None]]]:
+             ) -> tuple[Any, list[Callable[[MujocoPhysics], None]], WorldSpec]:
     from projection_server.simulation.engines.mujoco.builders import object_builder
 
     s = settings.physics
@@ -158,7 +234,8 @@ def _compile(scenario: Scenario, settings: Settings, tool_control: bool
     if world.gravity is not None:
         option.gravity = [0.0, 0.0, -world.gravity]
     _pairs(world)
-    return spec.compile(), world.after
+    model = spec.compile()
+    return model, world.after, world
 
 
 def _pairs(world: WorldSpec) -> None:
@@ -166,9 +243,10 @@ def _pairs(world: WorldSpec) -> None:
     (not both static, not both robots'), of the product of their frictions."""
     geoms = world.geoms
     for i, a in enumerate(geoms):
-        for b in geoms[i + 1:]:
+        for j, b in enumerate(geoms[i + 1:], i + 1):
             if a.entity == b.entity or (a.kind == b.kind and a.kind != 'dynamic'):
                 continue
+            world.pairs.append((i, j))
             mu = a.friction * b.friction
             world.spec.add_pair(name=f'{a.name}|{b.name}', geomname1=a.name,
                                 geomname2=b.name, condim=CONDIM,
