@@ -1,7 +1,9 @@
 """MuJoCo: the second engine, with a contact model unlike Bullet's (soft, convex, elliptic
-friction cones). Each projection compiles its own ``MjModel`` from an ``MjSpec`` built in
-code (:mod:`.world`, contact settings and their sources there); the builders of the units
-it can build are in :mod:`.builders`. A session holds nothing between worlds.
+friction cones). An ``MjModel`` is compiled from an ``MjSpec`` built in code (:mod:`.world`,
+contact settings and their sources there) once per scenario shape in a process, and each
+projection gets a copy of it with its own scenario's numbers (frictions, masses) and its
+own ``MjData``: what one world does never reaches another. The builders of the units it
+can build are in :mod:`.builders`.
 
 Past this machine, MuJoCo Warp steps the same ``MjModel`` batched on a GPU: a batch of
 worlds of one scenario differs only in its ``MjData``.
