@@ -107,6 +107,8 @@ def main() -> int:
     parser = harness.arguments(__doc__, repeat=15)
     parser.add_argument('--force', type=float, default=5.0)
     parser.add_argument('--position', type=float, default=0.0)
+    parser.add_argument('--engines', default=','.join(ENGINES),
+                        help=f'engines to measure, comma-separated (default {",".join(ENGINES)})')
     args = parser.parse_args()
 
     from projection_server.settings import load_settings
@@ -121,7 +123,7 @@ def main() -> int:
     settings = load_settings()
     simulator = Simulator()
     with tempfile.TemporaryDirectory() as tmp:
-        for engine in ENGINES:
+        for engine in args.engines.split(','):
             job = Job.checked(scenario, 'grasp_object',
                               {'force': args.force, 'position': args.position},
                               {'engine': engine})
