@@ -10,6 +10,7 @@ layout of a contact point, once per step for every body.
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any, Callable, TYPE_CHECKING
 
@@ -49,6 +50,11 @@ class MujocoPhysics(Physics):
         # and indexing one with a list of rows costs several times reading it whole.
         self._xpos, self._xquat, self._xipos = data.xpos, data.xquat, data.xipos
         self._elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+        # Every contact is one of the world's pairs (no geom collides by its own type bits)
+        # and every pair has friction: each contact's dimension is known without reading it.
+        self._frictional = bool(
+            self._elliptic and not model.geom_contype.any() and not model.geom_conaffinity.any()
+            and (model.pair_dim > 1).all())
 
     def bind(self) -> None:
         """Map every geom to its entity's body and link, once the bodies are registered."""
@@ -237,8 +243,9 @@ class MujocoPhysics(Physics):
         # The step's constraint forces as one list: a handful of numpy scalars cost more.
         efc = d.efc_force.tolist() if elliptic else None
         out = None if elliptic else np.zeros(6)
+        dims = itertools.repeat(3) if self._frictional else contact.dim.tolist()
         for k, ((g1, g2), address, dim, frame, position, dist) in enumerate(zip(
-                contact.geom.tolist(), contact.efc_address.tolist(), contact.dim.tolist(),
+                contact.geom.tolist(), contact.efc_address.tolist(), dims,
                 contact.frame.tolist(), contact.pos.tolist(), contact.dist.tolist())):
             if address < 0:   # excluded: no constraint
                 continue
@@ -248,22 +255,30 @@ class MujocoPhysics(Physics):
                 continue
             if elliptic:
                 fn = efc[address]
-                ft1, ft2 = (efc[address + 1], efc[address + 2]) if dim > 1 else (0.0, 0.0)
+                if dim > 1:
+                    ft1, ft2 = efc[address + 1], efc[address + 2]
+                else:
+                    ft1, ft2 = 0.0, 0.0
             else:
                 mujoco.mj_contactForce(self.model, d, k, out)
                 fn, ft1, ft2 = float(out[0]), float(out[1]), float(out[2])
             nx, ny, nz, t1x, t1y, t1z, t2x, t2y, t2z = frame
             position = tuple(position)
             t1, t2 = (t1x, t1y, t1z), (t2x, t2y, t2z)
-            if b1 < b2:   # a = geom 1's body: the normal from b to a is -n; a feels -f
-                a, la, b, lb = b1, l1, b2, l2
-                normal, back, f1, f2 = (-nx, -ny, -nz), (nx, ny, nz), -ft1, -ft2
-            else:
-                a, la, b, lb = b2, l2, b1, l1
-                normal, back, f1, f2 = (nx, ny, nz), (-nx, -ny, -nz), ft1, ft2
-            point = (0, a, b, la, lb, position, position, normal, dist, fn, f1, t1, f2, t2)
             # From the later body: the normal turned, the friction as it is (the protocol).
-            turned = (0, b, a, lb, la, position, position, back, dist, fn, f1, t1, f2, t2)
+            if b1 < b2:   # a = geom 1's body: the normal from b to a is -n; a feels -f
+                a, b = b1, b2
+                ft1, ft2 = -ft1, -ft2
+                point = (0, b1, b2, l1, l2, position, position, (-nx, -ny, -nz), dist, fn,
+                         ft1, t1, ft2, t2)
+                turned = (0, b2, b1, l2, l1, position, position, (nx, ny, nz), dist, fn,
+                          ft1, t1, ft2, t2)
+            else:
+                a, b = b2, b1
+                point = (0, b2, b1, l2, l1, position, position, (nx, ny, nz), dist, fn,
+                         ft1, t1, ft2, t2)
+                turned = (0, b1, b2, l1, l2, position, position, (-nx, -ny, -nz), dist, fn,
+                          ft1, t1, ft2, t2)
             listed = points.get(a)
             if listed is None:
                 points[a] = [point]
