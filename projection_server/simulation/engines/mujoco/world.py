@@ -123,7 +123,7 @@ def build_world(scenario: Scenario, settings: Settings, tool_control: bool = Fal
     body's mass and inertia and the constants MuJoCo's compiler derives from the masses
     (``mj_setConst``'s, and the mean mass and inertia that scale the solver's tolerance).
     The copy is the model that compiling the scenario gives, bit for bit
-    (test/simulation/test_engines.py compares every field)."""
+    (test/simulation/test_mujoco_models.py compares every field)."""
     key = (repr(_shape(scenario)), repr(settings.physics), tool_control)
     compiled = _COMPILED.get(key)
     if compiled is None:
