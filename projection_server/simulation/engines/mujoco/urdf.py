@@ -56,7 +56,8 @@ from projection_server.simulation.engines.mujoco.builders import (_euler_quat, _
                                                                   _release, _subtree,
                                                                   add_drive, DRIVE_SOLIMP,
                                                                   DRIVE_SOLREF)
-from projection_server.simulation.physics import Body, Shape
+from projection_server.simulation.physics import Body, GripperBase, Shape
+from projection_server.simulation.robots.linkage import LEVER_STEP, OpeningTable
 from projection_server.simulation.robots.manipulator import _kinematics, Arm
 
 if TYPE_CHECKING:
@@ -443,7 +444,7 @@ def _linkage(entity: Entity, infos: tuple[_Joint, ...], fingers: list[int],
             'start': finger_values(fingers, open_values, closed_values, mimics, held, 1.0)}
 
 
-class MujocoLinkageGripper:
+class MujocoLinkageGripper(GripperBase):
     """:class:`~projection_server.simulation.robots.linkage.LinkageGripper` on MuJoCo: the
     same table, levers and commands, each finger joint moved through its drive (the
     tendon's friction loss its torque limit: closing, the force asked for times the
@@ -455,65 +456,40 @@ class MujocoLinkageGripper:
                  closed_values: Sequence[float], table: tuple[Sequence[float], Sequence[float]],
                  torques: Sequence[float], max_force: float, rate: float,
                  finger_links: Sequence[str], carried: Sequence[int]):
-        from projection_server.simulation.robots.linkage import LEVER_STEP
-
-        self.name, self.body_id, self.pads = name, body_id, []
+        self._table = OpeningTable(open_values, closed_values, table)
+        super().__init__(name, body_id, joints, [], max_force, self._table.max_opening,
+                         finger_links)
         self._physics = physics
         model = physics.model
-        self._fingers = tuple(joints['fingers'])
-        self._finger_links = list(finger_links)
         self._qpos = np.array([model.jnt_qposadr[j] for j in joints['fingers']])
         self._drive_dof = np.array([model.jnt_dofadr[j] for j in joints['drives']])
         self._tendons = np.array(joints['tendons'])
-        self._open = np.asarray(open_values, float)
-        self._closed = np.asarray(closed_values, float)
-        self._span = self._open - self._closed
-        self._u, self._openings = np.asarray(table[0], float), np.asarray(table[1], float)
-        slopes = np.diff(self._openings) / np.diff(self._u)
-        self._slope_u = (self._u[:-1] + self._u[1:]) / 2
-        self._slopes = np.maximum(np.abs(slopes), 1e-9)
-        self._mean_slope = max((self._openings[-1] - self._openings[0])
-                               / (self._u[-1] - self._u[0]), 1e-9)
         self._torques = np.asarray(torques, float)
-        self.max_force = max_force
-        self.max_opening = float(self._openings[-1])
         self._rate = rate
-        self._lever_step = LEVER_STEP
-        self.command, self.commanded_force = 'open', 0.0
         self._speed = 0.0
-        self._target = self._open.copy()
+        self._target = self._table.open.copy()
         self._limit = np.full(len(self._fingers), math.inf)
         self._set_at = 1.0
         self._carried = np.asarray(carried, int)
         g = -float(model.opt.gravity[2])
-        self._lift = np.array([[0.0, 0.0, float(model.body_mass[b]) * g] for b in carried])
+        self._weights = np.array([[0.0, 0.0, float(model.body_mass[b]) * g] for b in carried])
         physics.controllers.append(self._control)
 
-    @property
-    def finger_links(self) -> list[str]:
-        return self._finger_links
-
-    @property
-    def fingers(self) -> tuple[int, ...]:
-        return self._fingers
-
     def position(self) -> float:
+        table = self._table
         q = self._physics.data.qpos[self._qpos]
-        return float(np.mean((q - self._closed) / self._span))
+        return float(np.mean((q - table.closed) / table.span))
 
     def levers(self, u: float) -> np.ndarray:
-        from projection_server.simulation.robots.linkage import MIN_LEVER
-
-        slope = float(np.interp(u, self._slope_u, self._slopes))
-        return np.maximum(slope / (len(self._fingers) * np.abs(self._span)), MIN_LEVER)
+        return self._table.levers(u)
 
     def _control(self) -> None:
         data = self._physics.data
         if self.command == 'close':
             u = self.position()
-            if abs(u - self._set_at) >= self._lever_step:
+            if abs(u - self._set_at) >= LEVER_STEP:
                 self._set_closing(u)
-            speed = np.full(len(self._fingers), -2 * self._speed / self._mean_slope) * self._span
+            speed = np.full(len(self._fingers), -self._table.rate(self._speed)) * self._table.span
         else:
             error = self._target - data.qpos[self._qpos]
             speed = np.clip(self._rate * error, -self._limit, self._limit)
@@ -530,22 +506,16 @@ class MujocoLinkageGripper:
         self._speed = speed
         self._set_closing(self.position())
         if len(self._carried):
-            self._physics.data.xfrc_applied[self._carried, :3] = self._lift
+            self._physics.data.xfrc_applied[self._carried, :3] = self._weights
 
     def open(self, opening: float, speed: float) -> None:
         self.command, self.commanded_force = 'open', 0.0
-        u = float(np.interp(min(opening, self.max_opening), self._openings, self._u))
-        self._target = self._closed + u * self._span
-        self._limit = 2 * speed / self._mean_slope * np.abs(self._span)
+        table = self._table
+        self._target = table.closed + table.position_at(opening) * table.span
+        self._limit = table.rate(speed) * np.abs(table.span)
         self._physics.model.tendon_frictionloss[self._tendons] = self._torques
         if len(self._carried):
             self._physics.data.xfrc_applied[self._carried, :3] = 0.0
-
-    def opening(self) -> float:
-        return self.state()[0]
-
-    def measured_force(self) -> float:
-        return self.state()[1]
 
     def state(self) -> tuple[float, float]:
         """``(opening, measured force)``: the opening at the fingers' position; the mean
@@ -558,8 +528,7 @@ class MujocoLinkageGripper:
         tendon = mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON
         torque = {i: abs(f) for i, f, k in zip(ids, forces, kinds) if k == tendon}
         torques = np.array([torque.get(int(t), 0.0) for t in self._tendons])
-        return (float(np.interp(u, self._u, self._openings)),
-                float(np.mean(torques / self.levers(u))))
+        return self._table.opening_at(u), float(np.mean(torques / self.levers(u)))
 
     def pad_faces(self) -> list[Any]:
         return []
