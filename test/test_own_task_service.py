@@ -10,6 +10,8 @@ import json
 from projection_interfaces.srv import PrologQuery
 import pytest
 
+from test.queries import PUSH_OFF_THE_EDGE
+
 Q = PrologQuery.Request
 SIM_TIMEOUT = 120.0
 FINER = '[physics(_{rate_hz: 480, solver_iterations: 200})]'
@@ -74,15 +76,7 @@ def test_a_pose_the_panda_cannot_reach_is_unreachable(call):
     assert 'unreachable' in r.message and 'panda_robot' in r.message, r.message
 
 
-PUSH = '''create_scenario(S), add_to_scenario(S, [kitchen_env, pr2_robot,
-        entity(box1, rigid_object, _{{shape: box, size_x: 0.05, size_y: 0.05, size_z: 0.05,
-                                      mass: 0.2, friction: 0.4,
-                                      pose: _{{xyz: [0.45, 0.0, 0.745]}}}})]),
-    make_projection(S, plan([close_gripper(10),
-                             move_to(box1, [-0.09, 0, 0], [orientation(side(0)), speed(1.0)]),
-                             move_by([D, 0, 0], [speed(0.1)]), move_by([-0.1, 0, 0])]),
-                    [(D, distance, {distances})], {options}, TL),
-    ( occurs(drop(box1), _, TL) -> Fell = yes ; Fell = no ),
+PUSH = PUSH_OFF_THE_EDGE + ''',
     quantity(displacement(box1), Moved, TL)'''
 
 
