@@ -51,7 +51,9 @@ from typing import Any, Callable, TYPE_CHECKING
 
 import mujoco
 
+from projection_server import assets
 from projection_server.simulation.engines.mujoco.physics import MujocoPhysics
+from projection_server.simulation.scenario import model_files
 
 if TYPE_CHECKING:
     from projection_server.settings import Settings
@@ -107,9 +109,11 @@ class WorldSpec:
 def build_world(scenario: Scenario, settings: Settings, tool_control: bool = False
                 ) -> MujocoPhysics:
     """A fresh world of ``scenario``: a copy of its compiled model (compiled once per
-    scenario and settings in a process: a query's parametrizations share it), its own
-    data, and what the builders bind to them."""
-    key = (repr(scenario), repr(settings.physics), tool_control)   # frozen dataclasses
+    scenario, settings and content of its model files in a process: a query's
+    parametrizations share it), its own data, and what the builders bind to them."""
+    # frozen dataclasses; and the model files' contents: an edited mesh is compiled anew
+    files = tuple((path, assets.digest(path)) for path in model_files(scenario))
+    key = (repr(scenario), repr(settings.physics), tool_control, files)
     compiled = _COMPILED.get(key)
     if compiled is None:
         compiled = _compile(scenario, settings, tool_control)
@@ -130,8 +134,10 @@ def build_world(scenario: Scenario, settings: Settings, tool_control: bool = Fal
     return physics
 
 
-# (scenario, physics settings, tool control) -> (compiled model, the builders' binders)
-_COMPILED: dict[tuple[str, str, bool], tuple[Any, list[Callable[[MujocoPhysics], None]]]] = {}
+# (scenario, physics settings, tool control, model files' digests) -> (compiled model, the
+# builders' binders)
+_COMPILED: dict[tuple[str, str, bool, tuple[tuple[str, str], ...]],
+                tuple[Any, list[Callable[[MujocoPhysics], None]]]] = {}
 
 
 def _compile(scenario: Scenario, settings: Settings, tool_control: bool
