@@ -16,7 +16,6 @@ robust choice over the 33 grasp cells, on each engine in the same run.
 
 from __future__ import annotations
 
-import contextlib
 import json
 from pathlib import Path
 import statistics
@@ -25,14 +24,12 @@ import tempfile
 import time
 
 import harness
+from robust_choice import BELIEF, GRID, OK
 
 ENGINES = ('pybullet', 'mujoco')
 OUTCOME = '( occurs(break, _, TL) -> O = break ; occurs(slip, _, TL) -> O = slip ; O = ok )'
-OK = '( \\+ occurs(break, _, TL), \\+ occurs(slip, _, TL) )'
-GRID = '[(F, force, range(1, 11, 1)), (P, position, [-0.02, 0.0, 0.02])]'
-ROBUST = ('copy_scenario(grasping, S), '
-          'scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)), '
-          'scenario_set_property(S, egg1, breaking_force, normal(10, 1.5)), '
+# robust_choice's cells and belief, on the engine asked for
+ROBUST = (BELIEF + ', '
           'robust_parametrization(S, grasp_object, {grid}, [seed({seed}), '
           'physics(_{{engine: {engine}}})], TL, {ok}, B)')
 
@@ -100,13 +97,7 @@ def main() -> int:
 
     rclpy.init()
     try:
-        with contextlib.ExitStack() as stack:
-            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory()))
-            bags = tmp / 'bags'
-            stack.enter_context(harness.start_node(
-                {'bag_dir': str(bags), 'projection_workers': 2, 'max_bags': 10_000_000},
-                tmp / 'node.log'))
-            c = stack.enter_context(harness.client())
+        with harness.node_with_client(workers=2) as (c, bags):
             tables = {}
             forces = ', '.join(map(str, GRASP_FORCES))
             positions = ', '.join(map(str, GRASP_POSITIONS))

@@ -6,7 +6,7 @@
   entities' properties: :func:`kb_scenario`, :func:`prolog`, :func:`find_entity`,
   :func:`set_properties`;
 * a node of its own, a client of it and what its ping says: :func:`ros_domain`,
-  :func:`start_node`, :func:`client`, :class:`ServerStats`;
+  :func:`start_node`, :func:`client`, :func:`node_with_client`, :class:`ServerStats`;
 * what ``/proc`` says of a node and its projection workers: :func:`worker_pids`,
   :func:`wait_warm`, :func:`rss_mb`, :func:`cpu_seconds`;
 * the floor a projection is measured against, the bare stepping of its world and program:
@@ -38,6 +38,7 @@ import os
 from pathlib import Path
 import platform
 import statistics
+import tempfile
 import time
 from typing import Any, TYPE_CHECKING
 
@@ -195,6 +196,19 @@ def client(server: str = '/projection_server', service_timeout: float = 60.0
         c.close(finish=False)
         raise RuntimeError(f'{server} did not come up')
     return c
+
+
+@contextlib.contextmanager
+def node_with_client(workers: int = 2) -> Iterator[tuple[PrologClient, Path]]:
+    """A node of ``workers`` projection workers (rclpy must be initialised), with an empty
+    bag directory of its own and no bound on its bags, and a client of it: yields
+    ``(client, bag directory)``; the node stopped and the directory removed on exit."""
+    with tempfile.TemporaryDirectory() as name:
+        tmp = Path(name)
+        bags = tmp / 'bags'
+        with start_node({'bag_dir': str(bags), 'projection_workers': workers,
+                         'max_bags': 10_000_000}, tmp / 'node.log'), client() as c:
+            yield c, bags
 
 
 class ServerStats:

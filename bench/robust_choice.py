@@ -19,10 +19,7 @@ nominal grid of the same round. The goal: a certified choice within 10 s on 2 co
 
 from __future__ import annotations
 
-import contextlib
-from pathlib import Path
 import statistics
-import tempfile
 
 import harness
 
@@ -30,9 +27,11 @@ OK = '( \\+ occurs(break, _, TL), \\+ occurs(slip, _, TL) )'
 GRID = '[(F, force, range(1, 11, 1)), (P, position, [-0.02, 0.0, 0.02])]'
 NOMINAL = (f'copy_scenario(grasping, S), make_projection(S, grasp_object, {GRID}, TL), '
            f'( {OK} -> O = ok ; O = fail )')
-ROBUST = ('copy_scenario(grasping, S), '
+# The closed loop's belief: a fresh copy of the scenario S, egg1's properties uncertain.
+BELIEF = ('copy_scenario(grasping, S), '
           'scenario_set_property(S, egg1, friction, uniform(0.2, 0.4)), '
-          'scenario_set_property(S, egg1, breaking_force, normal(10, 1.5)), '
+          'scenario_set_property(S, egg1, breaking_force, normal(10, 1.5))')
+ROBUST = (f'{BELIEF}, '
           f'robust_parametrization(S, grasp_object, {GRID}, [seed({{seed}})], TL, {OK}, B)')
 
 
@@ -49,13 +48,7 @@ def main() -> int:
     rows: dict[str, list[tuple[float, int]]] = {'nominal': [], 'robust': []}
     ratios = []
     try:
-        with contextlib.ExitStack() as stack:
-            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory()))
-            bags = tmp / 'bags'
-            stack.enter_context(harness.start_node(
-                {'bag_dir': str(bags), 'projection_workers': 2, 'max_bags': 10_000_000},
-                tmp / 'node.log'))
-            c = stack.enter_context(harness.client())
+        with harness.node_with_client(workers=2) as (c, bags):
             for round_ in range(args.repeat):
                 seed = args.seed + round_
                 t_nominal, n_nominal, _ = harness.timed(c, bags, NOMINAL, timeout=3600)

@@ -11,6 +11,7 @@ from projection_interfaces.srv import PrologQuery
 import pytest
 
 from projection_server.reproduce.paper import GRASP_FORCES, GRASP_POSITIONS, TABLE_I
+from test.queries import PUSH_OFF_THE_EDGE
 
 Q = PrologQuery.Request
 TIMEOUT = 600.0
@@ -184,20 +185,14 @@ def test_an_object_the_engine_cannot_build_is_an_error_naming_it(call):
 # A box pushed towards the table's edge falls once its centre of mass is past the edge:
 # its centre starts 0.15 m from it and the fingers touch it after 0.04 m, so it falls
 # from a push of 0.19 m (statics). Within 10 % of the 0.15 m on either side, both engines.
-PUSH = '''create_scenario(S), add_to_scenario(S, [kitchen_env, pr2_robot,
-        entity(box1, rigid_object, _{{shape: box, size_x: 0.05, size_y: 0.05, size_z: 0.05,
-                                      mass: 0.2, friction: 0.4,
-                                      pose: _{{xyz: [0.45, 0.0, 0.745]}}}})]),
-    make_projection(S, plan([close_gripper(10),
-                             move_to(box1, [-0.09, 0, 0], [orientation(side(0)), speed(1.0)]),
-                             move_by([D, 0, 0], [speed(0.1)]), move_by([-0.1, 0, 0])]),
-                    [(D, distance, [0.175, 0.205])], [physics(_{{engine: {engine}}})], TL),
-    ( occurs(drop(box1), _, TL) -> Fell = yes ; Fell = no )'''
+def push(engine):
+    return PUSH_OFF_THE_EDGE.format(distances=[0.175, 0.205],
+                                    options=f'[physics(_{{engine: {engine}}})]')
 
 
 @pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
 def test_a_box_pushed_off_the_tables_edge_falls_past_the_textbooks_distance(call, engine):
-    r, sols = ask(call, PUSH.format(engine=engine))
+    r, sols = ask(call, push(engine))
     assert r.ok, (r.error_kind, r.message)
     assert {s['D']: s['Fell'] for s in sols} == {0.175: 'no', 0.205: 'yes'}, (engine, sols)
 

@@ -2,7 +2,8 @@
 
 The node runs with an asset directory and a Turtle file of the test's own
 (``asset_paths``, ``kb_files``). Outcomes are projections of the ``wait`` program: the
-world runs with no robot in it (a glass falls onto the table, a mug rests on it).
+world runs with no robot in it (a glass falls onto the table, a mug rests on it), on both
+engines (``physics(_{engine: E})``).
 """
 
 from __future__ import annotations
@@ -19,12 +20,20 @@ Q = PrologQuery.Request
 NAME = 'objects_server'
 SIM_TIMEOUT = 120.0
 
-# A 6 cm cube, origin at the centre of its bottom face (outward-facing triangles).
-CUBE = '\n'.join(
-    [f'v {x} {y} {z}' for z in (0.0, 0.06) for x, y in
-     ((-0.03, -0.03), (0.03, -0.03), (0.03, 0.03), (-0.03, 0.03))]
-    + ['f 1 3 2', 'f 1 4 3', 'f 5 6 7', 'f 5 7 8', 'f 1 2 6', 'f 1 6 5',
-       'f 2 3 7', 'f 2 7 6', 'f 3 4 8', 'f 3 8 7', 'f 4 1 5', 'f 4 5 8']) + '\n'
+ENGINES = ('pybullet', 'mujoco')
+
+
+def block(height: float) -> str:
+    """An OBJ of a 6 cm square block ``height`` tall, origin at the centre of its bottom face
+    (outward-facing triangles)."""
+    return '\n'.join(
+        [f'v {x} {y} {z}' for z in (0.0, height) for x, y in
+         ((-0.03, -0.03), (0.03, -0.03), (0.03, 0.03), (-0.03, 0.03))]
+        + ['f 1 3 2', 'f 1 4 3', 'f 5 6 7', 'f 5 7 8', 'f 1 2 6', 'f 1 6 5',
+           'f 2 3 7', 'f 2 7 6', 'f 3 4 8', 'f 3 8 7', 'f 4 1 5', 'f 4 5 8']) + '\n'
+
+
+CUBE = block(0.06)   # a 6 cm cube
 
 MY_KB = '''
 @prefix kitchen: <http://projection-server.org/ontology/kitchen#> .
@@ -97,13 +106,18 @@ def serves_on(ask):
     assert r.ok and sols == [{'X': 1}]
 
 
-def test_a_glass_that_falls_10_cm_breaks_only_with_a_much_lower_breaking_force(ask):
-    r, sols = ask(GLASS_DROP + ''',
-        make_projection(S, wait, [(_, duration, [1.0])], TL1),
+def on(engine):
+    return f'[physics(_{{engine: {engine}}})]'
+
+
+@pytest.mark.parametrize('engine', ENGINES)
+def test_a_glass_that_falls_10_cm_breaks_only_with_a_much_lower_breaking_force(ask, engine):
+    r, sols = ask(GLASS_DROP + f''',
+        make_projection(S, wait, [(_, duration, [1.0])], {on(engine)}, TL1),
         ( occurs(break, _, TL1) -> Default = break ; Default = whole ),
         quantity(max_load(glass1), Load, TL1),
         copy_scenario(S, Weak), scenario_set_property(Weak, glass1, breaking_force, 5.0),
-        make_projection(Weak, wait, [(_, duration, [1.0])], TL2),
+        make_projection(Weak, wait, [(_, duration, [1.0])], {on(engine)}, TL2),
         ( occurs(break(glass1), _, TL2) -> Lower = break ; Lower = whole ),
         ( occurs(drop(glass1), _, TL2) -> Dropped = yes ; Dropped = no )''')
     assert r.ok, r.message
@@ -112,26 +126,28 @@ def test_a_glass_that_falls_10_cm_breaks_only_with_a_much_lower_breaking_force(a
     assert 5.0 < s['Load'] < 40.0   # the KB glass's breaking_force is 40 N
 
 
-def test_a_heavier_glass_breaks_where_the_default_does_not(ask):
-    r, sols = ask(GLASS_DROP + ''',
+@pytest.mark.parametrize('engine', ENGINES)
+def test_a_heavier_glass_breaks_where_the_default_does_not(ask, engine):
+    r, sols = ask(GLASS_DROP + f''',
         member(M, [0.22, 0.5]), copy_scenario(S, C), scenario_set_property(C, glass1, mass, M),
-        make_projection(C, wait, [(_, duration, [1.0])], TL),
+        make_projection(C, wait, [(_, duration, [1.0])], {on(engine)}, TL),
         ( occurs(break(glass1), _, TL) -> O = break ; O = whole )''')
     assert r.ok, r.message
     assert [(s['M'], s['O']) for s in sols] == [(0.22, 'whole'), (0.5, 'break')]
 
 
-def test_the_mug_the_tray_and_primitives_rest_on_the_table(ask):
-    r, sols = ask('''create_scenario(S),
+@pytest.mark.parametrize('engine', ENGINES)
+def test_the_mug_the_tray_and_primitives_rest_on_the_table(ask, engine):
+    r, sols = ask(f'''create_scenario(S),
         add_to_scenario(S, [kitchen_env, mug1, tray1,
-            entity(box1, rigid_object, _{shape: box, size_x: 0.05, size_y: 0.05, size_z: 0.05,
-                                         mass: 0.1, pose: _{xyz: [0.1, 0.3, 0.745]}}),
-            entity(can1, rigid_object, _{shape: cylinder, radius: 0.03, height: 0.1,
-                                         mass: 0.3, pose: _{xyz: [0.1, -0.3, 0.77]}}),
-            entity(ball1, rigid_object, _{shape: sphere, radius: 0.02, mass: 0.05,
-                                          friction: 1.0, rolling_friction: 0.01,
-                                          pose: _{xyz: [-0.4, -0.3, 0.74]}})]),
-        make_projection(S, wait, [(_, duration, [0.5])], TL),
+            entity(box1, rigid_object, _{{shape: box, size_x: 0.05, size_y: 0.05, size_z: 0.05,
+                                          mass: 0.1, pose: _{{xyz: [0.1, 0.3, 0.745]}}}}),
+            entity(can1, rigid_object, _{{shape: cylinder, radius: 0.03, height: 0.1,
+                                          mass: 0.3, pose: _{{xyz: [0.1, -0.3, 0.77]}}}}),
+            entity(ball1, rigid_object, _{{shape: sphere, radius: 0.02, mass: 0.05,
+                                           friction: 1.0, rolling_friction: 0.01,
+                                           pose: _{{xyz: [-0.4, -0.3, 0.74]}}}})]),
+        make_projection(S, wait, [(_, duration, [0.5])], {on(engine)}, TL),
         findall(O, ( member(O, [mug1, tray1, box1, can1, ball1]),
                      holds(on(O, table1), interval(_, End), TL), End >= 0.45 ), On),
         findall(E, occurs(E, _, TL), Events)''')
@@ -141,10 +157,11 @@ def test_the_mug_the_tray_and_primitives_rest_on_the_table(ask):
     assert s['Events'] == []
 
 
-def test_a_kb_file_and_an_asset_directory_of_ones_own(ask, own_files):
-    r, sols = ask('''scenario_entity(cube_on_table, cube1, E),
+@pytest.mark.parametrize('engine', ENGINES)
+def test_a_kb_file_and_an_asset_directory_of_ones_own(ask, own_files, engine):
+    r, sols = ask(f'''scenario_entity(cube_on_table, cube1, E),
         get_dict(properties, E, P), get_dict(file, P, F),
-        make_projection(cube_on_table, wait, [(_, duration, [0.3])], TL),
+        make_projection(cube_on_table, wait, [(_, duration, [0.3])], {on(engine)}, TL),
         ( holds(on(cube1, table1), _, TL) -> On = yes ; On = no )''')
     assert r.ok, r.message
     (s,) = sols
@@ -152,14 +169,33 @@ def test_a_kb_file_and_an_asset_directory_of_ones_own(ask, own_files):
     assert s['On'] == 'yes'
 
 
-def test_an_edited_mesh_is_projected_anew(ask, own_files):
-    query = 'simulate(cube_on_table, wait, [(_, duration, [0.2])], [], Log)'
-    r1, (s1,) = ask(query)
-    r2, (s2,) = ask(query)
-    (own_files / 'models' / 'cube.obj').write_text(CUBE + '# edited\n')
-    r3, (s3,) = ask(query)
+def heights(bag) -> list[float]:
+    """The heights of cube1's shape in the bag's markers, each message's."""
+    from projection_server.bags.reader import read_bag
+    from projection_server.bags.schema import TOPICS
+
+    return [m.scale.z for _, _, msg in read_bag(bag, [TOPICS['markers']])
+            for m in msg.markers if m.header.frame_id == 'cube1']
+
+
+@pytest.mark.parametrize('engine', ENGINES)
+def test_an_edited_mesh_is_projected_anew(ask, own_files, engine):
+    # A warm worker keeps what it built of a scenario: the edited block must not be the cube.
+    query = f'simulate(cube_on_table, wait, [(_, duration, [0.2])], {on(engine)}, Log)'
+    cube = own_files / 'models' / 'cube.obj'
+    cube.write_text(CUBE)
+    try:
+        r1, (s1,) = ask(query)
+        r2, (s2,) = ask(query)
+        cube.write_text(block(0.12))
+        r3, (s3,) = ask(query)
+    finally:
+        cube.write_text(CUBE)
     assert r1.ok and r2.ok and r3.ok, r3.message
     assert s1['Log'] == s2['Log'] != s3['Log']
+    first, edited = heights(s1['Log']), heights(s3['Log'])
+    assert first and all(abs(h - 0.06) < 1e-6 for h in first), first
+    assert edited and all(abs(h - 0.12) < 1e-6 for h in edited), edited
 
 
 def entity(file: str, shape: str = 'mesh') -> str:

@@ -1,5 +1,6 @@
 """Physics settings chosen by a query (make_projection/5's physics option), through the
-real service: checked against their ranges, recorded in the bag, part of the cache key."""
+real service: checked against their ranges, recorded in the bag, part of the cache key; the
+textbook's friction thresholds of a grasp hold at every rate on both engines."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import pytest
 
 Q = PrologQuery.Request
 SIM_TIMEOUT = 120.0
+ENGINES = ('pybullet', 'mujoco')
 
 
 def ask(call, text, mode=Q.ALL_SOLUTIONS):
@@ -65,15 +67,16 @@ def test_a_bad_option_is_an_error_naming_it(call, options, kind, words):
     assert all(w in text.replace(' ', '') for w in words), text
 
 
-def test_a_quicker_lift_needs_more_friction_at_every_rate(call):
+@pytest.mark.parametrize('engine', ENGINES)
+def test_a_quicker_lift_needs_more_friction_at_every_rate(call, engine):
     # Textbook: two pads of 3 N hold the 60 g egg through a minimum-jerk lift of 0.1 m in T
     # seconds iff friction >= m (g + 0.577 / T^2) / 6 N: 0.356 at T = 0.15 s, 0.242 at
     # 0.2 s, 0.134 at 0.4 s. A peak speed of 1.875 x 0.1 m / T, when it holds.
-    r, sols = ask(call, '''
+    r, sols = ask(call, f'''
         member(Friction-Lift, [0.25-0.15, 0.25-0.4, 0.35-0.2]), member(Rate, [240, 960]),
         copy_scenario(grasping, S), scenario_set_property(S, egg1, friction, Friction),
         make_projection(S, grasp_object, [(_, force, [3]), (_, lift_time, [Lift])],
-                        [physics(_{rate_hz: Rate})], T),
+                        [physics(_{{engine: {engine}, rate_hz: Rate}})], T),
         ( occurs(slip, _, T) -> Outcome = slip ; Outcome = ok ),
         quantity(max_speed(egg1), Speed, T),
         delete_scenario(S)''')
@@ -87,14 +90,16 @@ def test_a_quicker_lift_needs_more_friction_at_every_rate(call):
             assert s['Speed'] == pytest.approx(1.875 * 0.1 / s['Lift'], rel=0.05), s
 
 
-def test_whether_a_2_n_grasp_holds_the_egg_does_not_depend_on_the_rate(call):
+@pytest.mark.parametrize('engine', ENGINES)
+def test_whether_a_2_n_grasp_holds_the_egg_does_not_depend_on_the_rate(call, engine):
     # Textbook: two pads of 2 N hold the 60 g egg through the lift from friction 0.156 on.
     # A gantry that jumped to a new target at every control step shook the egg loose below
     # friction 0.21 at 240 Hz and below 0.26 at 960 Hz (bench/RESULTS.md, 2026-11-28).
-    r, sols = ask(call, '''
+    r, sols = ask(call, f'''
         member(Friction, [0.13, 0.24]), member(Rate, [240, 960]),
         copy_scenario(grasping, S), scenario_set_property(S, egg1, friction, Friction),
-        make_projection(S, grasp_object, [(_, force, [2])], [physics(_{rate_hz: Rate})], T),
+        make_projection(S, grasp_object, [(_, force, [2])],
+                        [physics(_{{engine: {engine}, rate_hz: Rate}})], T),
         ( occurs(slip, _, T) -> Outcome = slip ; Outcome = ok ),
         delete_scenario(S)''')
     assert r.ok, r.message

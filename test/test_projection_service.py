@@ -1,7 +1,8 @@
 """The paper's projection queries (sections II, III-B, IV-A) sent through the real service.
 
-Each projection is a real PyBullet simulation in a worker of the node, logged as a real bag
-in the node's bag_dir, translated into a timeline in the node's Prolog.
+Each projection is a real PyBullet simulation (MuJoCo where a test says so) in a worker of
+the node, logged as a real bag in the node's bag_dir, translated into a timeline in the
+node's Prolog.
 """
 
 from __future__ import annotations
@@ -83,9 +84,11 @@ def test_the_same_projection_translates_to_the_same_timeline_again(call):
     assert s['EA'] == s['EB'] and s['FA'] == s['FB']
 
 
-def test_translating_the_bag_gives_the_timeline_the_worker_made(call):
-    r, sols = ask(call, '''
-        make_projection(grasping, grasp_object, [(_, force, [11]), (_, position, [0.02])], A),
+@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
+def test_translating_the_bag_gives_the_timeline_the_worker_made(call, engine):
+    r, sols = ask(call, f'''
+        make_projection(grasping, grasp_object, [(_, force, [11]), (_, position, [0.02])],
+                        [physics(_{{engine: {engine}}})], A),
         timeline_property(A, meta(M)), get_dict(bag, M, Log),
         findall(E-T, occurs(E, T, A), EA), findall(F-T, holds(F, T, A), FA),
         findall(Q-V, quantity(Q, V, A), QA),
@@ -101,10 +104,11 @@ def test_translating_the_bag_gives_the_timeline_the_worker_made(call):
     assert {'functor': 'break', 'args': ['egg1']} in [e['args'][0] for e in s['EA']]
 
 
-def test_simulate_leaves_a_bag_with_poses_and_contacts(call):
+@pytest.mark.parametrize('options', ['60', '[physics(_{engine: mujoco}), timeout(60)]'])
+def test_simulate_leaves_a_bag_with_poses_and_contacts(call, options):
     from rosbags.highlevel import AnyReader
     from pathlib import Path
-    r, sols = ask(call, 'simulate(grasping, grasp_object, [(_, force, [5])], 60, Log)')
+    r, sols = ask(call, f'simulate(grasping, grasp_object, [(_, force, [5])], {options}, Log)')
     assert r.ok, r.message
     path = Path(sols[0]['Log'])
     assert path.is_dir() and not path.name.startswith('.')

@@ -1,7 +1,7 @@
 """robot_world/2 through the live node over DDS: a scenario from the description, joint
 states and TF frames that a publisher of the test's own sends (a real rclpy node), the
-projection starting where the published arm stands and the published egg lies; and every
-bad input a named error, the node serving on.
+projection starting where the published arm stands and the published egg lies, on both
+engines; and every bad input a named error, the node serving on.
 
 The node under test is its own, with its robot topics remapped under /rw (the usual ROS
 remapping), so that what other tests publish cannot reach it.
@@ -141,9 +141,10 @@ def _first_poses(bag):
             if frame != WORLD_FRAME}
 
 
-def _project(ask):
+def _project(ask, engine='pybullet'):
     [s] = solutions(ask(f'''robot_world(S, [{ENTITIES}]),
-        make_projection(S, {PLAN}, [], TL), timeline_property(TL, meta(M)),
+        make_projection(S, {PLAN}, [], [physics(_{{engine: {engine}}})], TL),
+        timeline_property(TL, meta(M)),
         get_dict(bag, M, Bag)'''))
     return s['Bag']
 
@@ -176,8 +177,10 @@ def _angle(q1, q2) -> float:
     return 2 * math.acos(min(1.0, abs(float(np.dot(q1, q2)))))
 
 
-def test_the_projection_starts_where_the_published_arm_stands_and_the_egg_lies(ask, graph):
-    poses = _first_poses(_project(ask))
+@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
+def test_the_projection_starts_where_the_published_arm_stands_and_the_egg_lies(ask, graph,
+                                                                               engine):
+    poses = _first_poses(_project(ask, engine))
     egg = next(p for f, p in poses.items() if f.endswith('egg1'))
     assert np.linalg.norm(egg[0] - np.array(EGG[0])) < 1e-3
     expected = _expected_links(JOINTS)
@@ -305,11 +308,14 @@ def test_the_node_serves_on_after_the_errors(ask, graph):
     solutions(ask(f'robot_world(S, [{ENTITIES}])'))
 
 
-def test_the_panda_grasps_and_lifts_the_egg_from_where_the_snapshot_found_both(ask, graph):
+@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
+def test_the_panda_grasps_and_lifts_the_egg_from_where_the_snapshot_found_both(ask, graph,
+                                                                               engine):
     [s] = solutions(ask(f'''robot_world(S, [{ENTITIES}]),
         make_projection(S, plan([move_to(egg1, [0, 0, 0.10], [orientation(top), speed(0.5)]),
                                  move_to(egg1, [0, 0, 0], [speed(0.1)]), close_gripper(5),
-                                 wait(0.3), move_by([0, 0, 0.1]), wait(0.5)]), [], TL),
+                                 wait(0.3), move_by([0, 0, 0.1]), wait(0.5)]), [],
+                        [physics(_{{engine: {engine}}})], TL),
         findall(E, occurs(E, _, TL), Es)''', timeout=120.0))
     events = [e if isinstance(e, str) else e['functor'] for e in s['Es']]
     assert 'lift' in events and 'slip' not in events and 'break' not in events, s['Es']

@@ -79,6 +79,22 @@ def test_the_rules_among_equals_choose_differently_from_the_same_worlds(call):
     assert [dict(e['dict'])['force'] for e in equals] == [3, 4, 5]
 
 
+def test_an_edge_rule_goes_on_choosing_as_many_worlds_as_its_certificate_has(call):
+    # 3, 4 and 5 N hold every egg of this belief: they agree, settled for margin after the
+    # sign test's worlds; the gentlest rule goes on to the certificate's 12 worlds with 3
+    # and 4 N only (5 N parked with the worlds it had), then certifies 3 N on 12 fresh ones.
+    belief = 'uniform(0.25, 0.35)'
+    _, margin = robust(call, [3, 4, 5], '[seed(5), certify(12)]', friction=belief)
+    force, gentlest = robust(call, [3, 4, 5], '[seed(5), certify(12), prefer(-max_load(egg1))]',
+                             friction=belief)
+    assert margin['worlds'] < 12 <= gentlest['worlds'], (margin, gentlest)
+    assert force == 3 and gentlest['p'] == 1.0 and gentlest['n'] == 12, gentlest
+    # 5 N parked where margin's choosing stopped; 3 and 4 N went on; then 12 fresh worlds
+    parked = margin['worlds']
+    assert gentlest['projections'] == 3 * parked + 2 * (gentlest['worlds'] - parked) + 12, \
+        (margin, gentlest)
+
+
 @pytest.mark.parametrize('options, kind, words', [
     ('[indifference(1.0)]', 'domain_error', 'indifference'),
     ('[indifference(-0.1)]', 'domain_error', 'indifference'),

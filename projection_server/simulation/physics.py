@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import functools
 import itertools
 import math
-from typing import Any, Callable, NamedTuple, Protocol, TYPE_CHECKING
+from typing import Any, Callable, NamedTuple, Protocol, Sequence, TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +28,7 @@ __all__ = [
     'ContactSample',
     'Fluid',
     'Gripper',
+    'GripperBase',
     'ObjectModel',
     'Pad',
     'Physics',
@@ -156,7 +157,52 @@ class ObjectModel(Protocol):
         """``(load since the last sample [N], load limit [N] or 0, broken)``; resets the load."""
 
 
-class Gripper:
+class GripperBase:
+    """What every engine's gripper shares: its name and body, its pads, its joints
+    (``joints``' ``fingers`` and, on a gantry, ``lift`` and ``approach``), the links that
+    touch what it holds (``finger_links``, default: the pads' links), its limits and the
+    command it was last given. An engine's gripper says how it moves the joints and what it
+    measures (:meth:`state`)."""
+
+    def __init__(self, name: str, body_id: int, joints: dict[str, Any], pads: list[Pad],
+                 max_force: float = math.inf, max_opening: float = math.inf,
+                 finger_links: Sequence[str] | None = None):
+        self.name = name
+        self.body_id = body_id
+        self.pads = pads
+        self._lift = joints.get('lift')
+        self._approach = joints.get('approach')
+        self._fingers = tuple(joints['fingers'])
+        self._finger_links = (list(finger_links) if finger_links is not None
+                              else [pad.link_name for pad in pads])
+        self.max_force = max_force
+        self.max_opening = max_opening
+        self.command = 'open'
+        self.commanded_force = 0.0
+
+    @property
+    def finger_links(self) -> list[str]:
+        return self._finger_links
+
+    @property
+    def fingers(self) -> tuple[int, ...]:
+        """The finger joints' indices."""
+        return self._fingers
+
+    def opening(self) -> float:
+        """Distance between the pad faces [m]."""
+        return self.state()[0]
+
+    def measured_force(self) -> float:
+        """Mean magnitude of the finger motors' forces [N]."""
+        return self.state()[1]
+
+    def state(self) -> tuple[float, float]:
+        """``(opening, measured force)``, from one reading of the fingers."""
+        raise NotImplementedError
+
+
+class Gripper(GripperBase):
     """A parallel-jaw gripper, optionally on a gantry (lift along z, approach along x of its
     base frame).
 
@@ -173,21 +219,10 @@ class Gripper:
                  pads: list[Pad], max_joint_force: float, max_force: float = math.inf,
                  max_opening: float = math.inf, position_gain: float = 0.1,
                  finger_links: list[str] | None = None):
-        self.name = name
-        self.body_id = body_id
-        self.pads = pads
+        super().__init__(name, body_id, joints, pads, max_force, max_opening, finger_links)
         self._client = client
-        self._lift = joints.get('lift')
-        self._approach = joints.get('approach')
-        self._fingers = tuple(joints['fingers'])
-        self._finger_links = (list(finger_links) if finger_links is not None
-                              else [pad.link_name for pad in pads])
         self._max_joint_force = max_joint_force
-        self.max_force = max_force
-        self.max_opening = max_opening
         self._gain = position_gain
-        self.command = 'open'
-        self.commanded_force = 0.0
         # What every move sends the gantry's joints but their targets (each step of a motion)
         self._gantry = [self._approach, self._lift]
         self._gantry_forces = [max_joint_force] * 2
@@ -195,15 +230,6 @@ class Gripper:
         for j in self._fingers:   # velocity motors off until commanded
             self._client.setJointMotorControl2(body_id, j, self._client.VELOCITY_CONTROL,
                                                targetVelocity=0.0, force=0.0)
-
-    @property
-    def finger_links(self) -> list[str]:
-        return self._finger_links
-
-    @property
-    def fingers(self) -> tuple[int, ...]:
-        """The finger joints' indices."""
-        return self._fingers
 
     def place(self, position: Vec3, orientation: Quat, approach: float, lift: float,
               opening: float) -> None:
@@ -245,14 +271,6 @@ class Gripper:
                 self.body_id, j, self._client.POSITION_CONTROL,
                 targetPosition=min(opening, self.max_opening) / 2, maxVelocity=speed,
                 force=self._max_joint_force, positionGain=self._gain)
-
-    def opening(self) -> float:
-        """Distance between the pad faces [m]."""
-        return self.state()[0]
-
-    def measured_force(self) -> float:
-        """Mean magnitude of the finger motors' forces [N]."""
-        return self.state()[1]
 
     def state(self) -> tuple[float, float]:
         """``(opening, measured force)`` from one query of the finger joints."""
@@ -344,7 +362,7 @@ class Physics:
         self.manipulators: dict[str, Any] = {}   # robot name -> its Manipulator
         self.step_count = 0
         self.bodies: dict[str, Body] = {}
-        self.grippers: dict[str, Gripper] = {}
+        self.grippers: dict[str, GripperBase] = {}
         self.models: list[ObjectModel] = []
         self.fluids: dict[str, Fluid] = {}
         self.containers: dict[str, Container] = {}

@@ -25,17 +25,18 @@ from pathlib import Path
 import xml.etree.ElementTree as ElementTree
 
 from projection_server import assets
+from projection_server.world.errors import GraphError
 
 __all__ = ['DescriptionError', 'Joint', 'RobotDescription', 'parse', 'write']
 
 
-class DescriptionError(Exception):
+class DescriptionError(GraphError):
     """A robot description that cannot be used; :attr:`kind` is ``malformed``,
     ``mesh_missing`` or ``mesh_outside``, :attr:`culprit` the topic or URI."""
 
-    def __init__(self, kind: str, culprit: str, message: str):
-        super().__init__(message)
-        self.kind, self.culprit, self.message = kind, culprit, message
+    @property
+    def culprit(self) -> str:
+        return self.subject
 
 
 @dataclass(frozen=True)

@@ -25,19 +25,20 @@ from typing import Iterable
 import numpy as np
 
 from projection_server.geometry import quaternion_product
+from projection_server.world.errors import GraphError
 
 __all__ = ['CACHE_TIME', 'TransformError', 'Transform', 'TransformBuffer', 'compose', 'invert']
 
 CACHE_TIME = 10.0   # s of /tf kept per frame, tf2's default cache time
 
 
-class TransformError(Exception):
+class TransformError(GraphError):
     """A lookup that cannot be answered; :attr:`kind` is ``unknown``, ``unconnected`` or
     ``extrapolation``, :attr:`frame` the frame it is about."""
 
-    def __init__(self, kind: str, frame: str, message: str):
-        super().__init__(message)
-        self.kind, self.frame, self.message = kind, frame, message
+    @property
+    def frame(self) -> str:
+        return self.subject
 
 
 @dataclass(frozen=True)

@@ -35,14 +35,52 @@ import numpy as np
 
 from projection_server.simulation.physics import Gripper
 
-__all__ = ['LEVER_STEP', 'LinkageGripper', 'TABLE_POINTS', 'cached_opening_table',
-           'finger_values', 'gap', 'opening_table']
+__all__ = ['LEVER_STEP', 'LinkageGripper', 'OpeningTable', 'TABLE_POINTS',
+           'cached_opening_table', 'finger_values', 'gap', 'opening_table']
 
 TABLE_POINTS = 41   # values of u at which the opening is measured
 LEVER_STEP = 0.01   # change of u after which a closing motor's torque limit is set anew
 MIN_LEVER = 1e-3    # m/rad: a lever below this (a linkage at a dead point) counts as this
 
 _TABLES: dict[Any, tuple[list[float], list[float]]] = {}
+
+
+class OpeningTable:
+    """An opening table of :func:`opening_table` (``table``: ``u`` values, openings) with
+    the finger joints' ``open`` and ``closed`` values: what every engine's linkage gripper
+    translates its commands and readings with."""
+
+    def __init__(self, open_values: Sequence[float], closed_values: Sequence[float],
+                 table: tuple[Sequence[float], Sequence[float]]):
+        self.open = np.asarray(open_values, float)
+        self.closed = np.asarray(closed_values, float)
+        self.span = self.open - self.closed
+        self.u, self.openings = np.asarray(table[0], float), np.asarray(table[1], float)
+        # dO/du at the middle of each interval of the table
+        slopes = np.diff(self.openings) / np.diff(self.u)
+        self.slope_u = (self.u[:-1] + self.u[1:]) / 2
+        self.slopes = np.maximum(np.abs(slopes), 1e-9)
+        self.mean_slope = max((self.openings[-1] - self.openings[0])
+                              / (self.u[-1] - self.u[0]), 1e-9)
+        self.max_opening = float(self.openings[-1])
+
+    def levers(self, u: float) -> np.ndarray:
+        """Each finger joint's lever at ``u`` [m/rad]: its pad's speed per joint speed."""
+        slope = float(np.interp(u, self.slope_u, self.slopes))
+        return np.maximum(slope / (len(self.span) * np.abs(self.span)), MIN_LEVER)
+
+    def opening_at(self, u: float) -> float:
+        """The opening [m] with the fingers at ``u``."""
+        return float(np.interp(u, self.u, self.openings))
+
+    def position_at(self, opening: float) -> float:
+        """The fingers' ``u`` of ``opening`` [m] (at most the widest)."""
+        return float(np.interp(min(opening, self.max_opening), self.openings, self.u))
+
+    def rate(self, speed: float) -> float:
+        """How fast ``u`` changes for the gap to close or open at ``2 speed`` [m/s] on
+        average."""
+        return 2 * speed / self.mean_slope
 
 
 class LinkageGripper(Gripper):
@@ -58,21 +96,14 @@ class LinkageGripper(Gripper):
                  max_joint_torques: Sequence[float], max_force: float,
                  position_gain: float, finger_links: Sequence[str],
                  carried: Sequence[int] = ()):
+        self._table = OpeningTable(open_values, closed_values, table)
         super().__init__(client, name, body_id, {'fingers': list(fingers)}, [],
                          max_joint_force=max(max_joint_torques), max_force=max_force,
-                         max_opening=float(table[1][-1]), position_gain=position_gain,
+                         max_opening=self._table.max_opening, position_gain=position_gain,
                          finger_links=list(finger_links))
-        self._open = np.asarray(open_values, float)
-        self._closed = np.asarray(closed_values, float)
-        self._span = self._open - self._closed
-        self._u, self._openings = np.asarray(table[0], float), np.asarray(table[1], float)
-        # dO/du at the middle of each interval of the table
-        slopes = np.diff(self._openings) / np.diff(self._u)
-        self._slope_u = (self._u[:-1] + self._u[1:]) / 2
-        self._slopes = np.maximum(np.abs(slopes), 1e-9)
-        self._mean_slope = (self._openings[-1] - self._openings[0]) / (self._u[-1] - self._u[0])
         self._torques = list(max_joint_torques)
-        self._scale = [(float(c), 1.0 / float(k)) for c, k in zip(self._closed, self._span)]
+        self._scale = [(float(c), 1.0 / float(k))
+                       for c, k in zip(self._table.closed, self._table.span)]
         self._set_at: float | None = None   # u at which the closing torques were set
         self._speed = 0.0
         self._carried = list(carried)
@@ -87,11 +118,7 @@ class LinkageGripper(Gripper):
 
     def levers(self, u: float) -> np.ndarray:
         """Each finger joint's lever at ``u`` [m/rad]: its pad's speed per joint speed."""
-        slope = float(np.interp(u, self._slope_u, self._slopes))
-        return np.maximum(slope / (len(self._fingers) * np.abs(self._span)), MIN_LEVER)
-
-    def _opening_at(self, u: float) -> float:
-        return float(np.interp(u, self._u, self._openings))
+        return self._table.levers(u)
 
     # --- commands -------------------------------------------------------------------------
     def close(self, force: float, speed: float) -> None:
@@ -102,10 +129,9 @@ class LinkageGripper(Gripper):
 
     def _set_closing(self, u: float) -> None:
         levers = self.levers(u)
-        # the fingers' u falls at the rate that closes the gap at 2 speed on average
-        rate = 2 * self._speed / max(self._mean_slope, 1e-9)
+        rate = self._table.rate(self._speed)   # the fingers' u falls at this rate
         c = self._client
-        for joint, span, lever in zip(self._fingers, self._span, levers):
+        for joint, span, lever in zip(self._fingers, self._table.span, levers):
             c.setJointMotorControl2(self.body_id, joint, c.VELOCITY_CONTROL,
                                     targetVelocity=-rate * span,
                                     force=self.commanded_force * float(lever))
@@ -134,10 +160,11 @@ class LinkageGripper(Gripper):
 
     def open(self, opening: float, speed: float) -> None:
         self.command, self.commanded_force = 'open', 0.0
-        u = float(np.interp(min(opening, self.max_opening), self._openings, self._u))
-        rate = 2 * speed / max(self._mean_slope, 1e-9)
+        u = self._table.position_at(opening)
+        rate = self._table.rate(speed)
         c = self._client
-        for joint, closed, span, torque in zip(self._fingers, self._closed, self._span,
+        table = self._table
+        for joint, closed, span, torque in zip(self._fingers, table.closed, table.span,
                                                self._torques):
             c.setJointMotorControl2(self.body_id, joint, c.POSITION_CONTROL,
                                     targetPosition=float(closed + u * span),
@@ -148,9 +175,10 @@ class LinkageGripper(Gripper):
         """``(opening, measured force)``: the opening at the fingers' position; the mean
         pad force of the finger motors' torques through their levers."""
         joints = self._client.getJointStates(self.body_id, self._fingers)
-        u = float(np.mean((np.asarray([j[0] for j in joints]) - self._closed) / self._span))
+        table = self._table
+        u = float(np.mean((np.asarray([j[0] for j in joints]) - table.closed) / table.span))
         forces = np.abs([j[3] for j in joints]) / self.levers(u)
-        return self._opening_at(u), float(forces.mean())
+        return table.opening_at(u), float(forces.mean())
 
 
 def gap(client: Any, body: int, values: dict[int, float], pads: Sequence[int]) -> float:

@@ -39,10 +39,11 @@ A fact that does not fit the model file is an ``invalid_scenario`` error that na
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import functools
 import math
 from pathlib import Path
-from typing import Any, TYPE_CHECKING
+from typing import Any, NamedTuple, TYPE_CHECKING
 import xml.etree.ElementTree as ET
 
 from projection_server.errors import ErrorKind, ProjectionError
@@ -57,7 +58,8 @@ if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
     from projection_server.simulation.scenario import Entity
 
-__all__ = ['PROPERTIES', 'URDF_ARM', 'mimic_joints']
+__all__ = ['ArmFacts', 'JointInfo', 'LinkageFacts', 'PROPERTIES', 'URDF_ARM', 'arm_facts',
+           'given_fingers', 'joint_infos', 'linkage_facts', 'mimic_joints']
 
 PROPERTIES = ('file', 'tool_link', 'tool_offset', 'tool_rpy', 'finger_joints', 'finger_open',
               'finger_closed', 'pad_links', 'max_force', 'home', 'joint_names',
@@ -68,6 +70,176 @@ COUPLING_FORCE = 100.0   # N (N m) of the gear that couples mimic joints
 HOLD_FORCE = 100.0       # N (N m) that holds a gripper joint that is neither finger nor mimic
 FRICTION = 1.0           # of every link: the fingers' pads are rubber
 MIN_STROKE = 0.005       # m the pads must move apart from closed to open
+
+
+class JointInfo(NamedTuple):
+    """A joint as PyBullet reads it from the model file (its index is PyBullet's; its
+    ``link`` the child link's name, ``parent`` the parent link's index, -1 the base)."""
+
+    name: str
+    kind: int
+    link: str
+    lower: float
+    upper: float
+    effort: float
+    parent: int
+
+
+def joint_infos(client: Any, body_id: int) -> tuple[JointInfo, ...]:
+    """The joints of ``body_id``, in PyBullet's order."""
+    infos = []
+    for j in range(client.getNumJoints(body_id)):
+        info = client.getJointInfo(body_id, j)
+        infos.append(JointInfo(info[1].decode(), info[2], info[12].decode(), info[8],
+                               info[9], info[10], info[16]))
+    return tuple(infos)
+
+
+@dataclass(frozen=True)
+class ArmFacts:
+    """A URDF arm's facts checked against its model file (see the module doc), as every
+    engine builds it: joints by PyBullet index (``joints``: name -> index)."""
+
+    infos: tuple[JointInfo, ...]
+    joints: dict[str, int]
+    fingers: list[int]
+    revolute: bool
+    tool: int
+    arm: list[int]                          # the joints from the base to the tool link
+    mimic: dict[str, tuple[str, float, float]]   # the file's mimic joints, by name
+    mimics: dict[int, tuple[int, float, float]]  # of them, those between its joints
+    given: dict[str, float]                 # joint_names -> joint_positions
+    held: dict[int, float]                  # neither arm, finger nor mimic: held there
+    home: list[float]                       # the arm joints' values at the start
+    start: dict[int, float]                 # prismatic fingers' values at the start
+
+
+def arm_facts(entity: Entity, infos: tuple[JointInfo, ...], sdf: bool = False) -> ArmFacts:
+    """The facts of the ``urdf`` robot ``entity`` whose model file has the joints
+    ``infos`` (an SDF has no mimic joints); an ``invalid_scenario`` error naming a fact
+    that does not fit."""
+    import pybullet
+
+    p = entity.properties
+    path, file = p['file'], Path(p['file']).name
+    joints = {j.name: i for i, j in enumerate(infos)}
+    link_index = {j.link: i for i, j in enumerate(infos)}
+    for key, names, known, what in (('tool_link', [p['tool_link']], link_index, 'link'),
+                                     ('finger_joints', p['finger_joints'], joints, 'joint'),
+                                     ('pad_links', p.get('pad_links', []), link_index, 'link')):
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise _fact(entity.name, key, f'{file} has no {what} {", ".join(unknown)}')
+    fingers = [joints[n] for n in p['finger_joints']]
+    revolute = _finger_kind(pybullet, entity.name, p['finger_joints'],
+                            [infos[j].kind for j in fingers])
+    tool = link_index[p['tool_link']]
+    chain, link = [], tool
+    while link >= 0:   # the joints from the base to the tool link
+        chain.append(link)
+        link = infos[link].parent
+    arm = [j for j in sorted(chain) if infos[j].kind != pybullet.JOINT_FIXED
+           and j not in fingers]
+    weak = [infos[j].link for j in arm if infos[j].effort <= 0]
+    if weak:
+        raise _fact(entity.name, 'tool_link', f'the joint to {", ".join(weak)} on the way to '
+                    f'{p["tool_link"]} has no effort limit in {file}: name a tool link before '
+                    'it, its offset reaching the pads')
+    mimic = mimic_joints(path)
+    mimics = {} if sdf else {joints[child]: (joints[parent], multiplier, offset)
+                             for child, (parent, multiplier, offset) in mimic.items()
+                             if child in joints and parent in joints}
+    given = dict(zip(p.get('joint_names', ()), p.get('joint_positions', ())))
+    unknown = [n for n in given if n not in joints]
+    if unknown:
+        raise _fact(entity.name, 'joint_names', f'{file} has no joint {", ".join(unknown)}')
+    held = {j: given.get(info.name, _rest(info)) for j, info in enumerate(infos)
+            if info.kind != pybullet.JOINT_FIXED and j not in arm and j not in fingers
+            and j not in mimics}
+    home = p.get('home')
+    if home is not None and len(home) != len(arm):
+        raise _fact(entity.name, 'home', f'{len(home)} values, the arm has {len(arm)} joints '
+                    f'({", ".join(infos[j].link for j in arm)} move)')
+    if home is None:
+        home = [_middle(infos[j]) for j in arm]
+    home = [given.get(infos[j].name, value) for j, value in zip(arm, home)]
+    start = {}
+    if not revolute:
+        for key in ('finger_open', 'finger_closed'):
+            if key in p:
+                raise _fact(entity.name, key, 'the finger joints are prismatic: open is their '
+                            'upper limit, closed 0')
+        for finger in fingers:   # open, or as given; a finger that mimics another follows it
+            name = infos[finger].name
+            parent, multiplier, offset = mimic.get(name, (None, 1.0, 0.0))
+            start[finger] = (given[name] if name in given else
+                             multiplier * given[parent] + offset if parent in given else
+                             infos[finger].upper)
+    return ArmFacts(infos, joints, fingers, revolute, tool, arm, mimic, mimics, given, held,
+                    home, start)
+
+
+@dataclass(frozen=True)
+class LinkageFacts:
+    """Revolute fingers' facts (:mod:`.linkage`): the finger joints' values open and
+    closed, the pad links, the opening table, the links the drive carries and the joints'
+    values open."""
+
+    open: list[float]
+    closed: list[float]
+    pads: list[int]
+    table: tuple[list[float], list[float]]
+    carried: list[int]
+    start: dict[int, float]
+
+
+def linkage_facts(client: Any, body_id: int, entity: Entity, facts: ArmFacts
+                  ) -> LinkageFacts:
+    """The revolute fingers' facts, measured on ``body_id`` of ``client`` (the robot at its
+    pose before its world runs, or a copy of it): the opening table once per process,
+    robot and pose."""
+    p, infos, fingers = entity.properties, facts.infos, facts.fingers
+    mimics, held = facts.mimics, facts.held
+    if 'finger_open' in p:
+        open_values, closed_values = list(p['finger_open']), list(p['finger_closed'])
+    else:
+        bad = [infos[j].name for j in fingers
+               if not 0 < infos[j].upper - infos[j].lower <= 2 * math.pi]
+        if bad:
+            raise _fact(entity.name, 'finger_open', f'give finger_open and finger_closed: the '
+                        f'limits of {", ".join(bad)} in {Path(p["file"]).name} are not a '
+                        "finger's range (none, or wider than a turn)")
+        open_values = [infos[j].upper for j in fingers]
+        closed_values = [infos[j].lower for j in fingers]
+    if p.get('pad_links') is None:
+        pads = _subtree(client, body_id, fingers, leaves=True)
+        if len(pads) < 2:
+            raise _fact(entity.name, 'pad_links', 'name the links that touch what the gripper '
+                        'holds: the finger joints end in '
+                        f'{", ".join(infos[j].link for j in pads)} alone')
+    else:
+        index = {info.link: j for j, info in enumerate(infos)}
+        pads = [index[n] for n in p['pad_links']]
+    if 'finger_open' not in p:   # of the two limits, open is where the pads are further apart
+        ends = [gap(client, body_id, finger_values(fingers, open_values, closed_values,
+                                                   mimics, held, u), pads) for u in (0.0, 1.0)]
+        if ends[1] < ends[0]:
+            open_values, closed_values = closed_values, open_values
+    key = (p['file'], tuple(fingers), tuple(open_values), tuple(closed_values),
+           tuple(sorted(mimics.items())), tuple(sorted(held.items())), tuple(pads),
+           tuple(entity.pose.xyz), tuple(entity.pose.rpy))
+    table = cached_opening_table(key, client, body_id, fingers, open_values, closed_values,
+                                 mimics, held, pads)
+    if table[1][-1] - table[1][0] < MIN_STROKE:
+        raise _fact(entity.name, 'finger_open', 'the pads '
+                    f'{", ".join(infos[j].link for j in pads)} are '
+                    f'{table[1][0] * 1000:.1f} mm apart closed and '
+                    f'{table[1][-1] * 1000:.1f} mm open: give the finger joints\' values '
+                    'that open and close the gripper (finger_open, finger_closed), and the '
+                    'links that touch what it holds (pad_links)')
+    carried = _subtree(client, body_id, [*fingers, *mimics])
+    return LinkageFacts(open_values, closed_values, pads, table, carried,
+                        finger_values(fingers, open_values, closed_values, mimics, held, 1.0))
 
 
 def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> None:
@@ -86,93 +258,49 @@ def build(physics: Physics, entity: Entity, gripper: Entity | None = None) -> No
         raise _fact(entity.name, 'file', f'{file}: {exc}') from None
     if body_id < 0:
         raise ProjectionError(ErrorKind.INVALID_SCENARIO, f'{entity.name}: cannot load {path}')
-    joints, links, kinds, parents = {}, {}, {}, {}
-    for j in range(c.getNumJoints(body_id)):
-        info = c.getJointInfo(body_id, j)
-        joints[info[1].decode()] = j
-        links[j] = info[12].decode()
-        kinds[j] = info[2]
-        parents[j] = info[16]
-    link_index = {name: j for j, name in links.items()}
-    for key, names, known, what in (('tool_link', [p['tool_link']], link_index, 'link'),
-                                     ('finger_joints', p['finger_joints'], joints, 'joint'),
-                                     ('pad_links', p.get('pad_links', []), link_index, 'link')):
-        unknown = [n for n in names if n not in known]
-        if unknown:
-            raise _fact(entity.name, key, f'{file} has no {what} {", ".join(unknown)}')
-    fingers = [joints[n] for n in p['finger_joints']]
-    revolute = _finger_kind(c, entity.name, p['finger_joints'], [kinds[j] for j in fingers])
-    tool = link_index[p['tool_link']]
-    chain, link = [], tool
-    while link >= 0:   # the joints from the base to the tool link
-        chain.append(link)
-        link = parents[link]
-    arm = [j for j in sorted(chain) if kinds[j] != c.JOINT_FIXED and j not in fingers]
-    weak = [links[j] for j in arm if c.getJointInfo(body_id, j)[10] <= 0]
-    if weak:
-        raise _fact(entity.name, 'tool_link', f'the joint to {", ".join(weak)} on the way to '
-                    f'{p["tool_link"]} has no effort limit in {file}: name a tool link before '
-                    'it, its offset reaching the pads')
-    mimics = {} if sdf else {joints[child]: (joints[parent], multiplier, offset)
-                             for child, (parent, multiplier, offset) in mimic_joints(path).items()
-                             if child in joints and parent in joints}
-    given = dict(zip(p.get('joint_names', ()), p.get('joint_positions', ())))
-    unknown = [n for n in given if n not in joints]
-    if unknown:
-        raise _fact(entity.name, 'joint_names', f'{file} has no joint {", ".join(unknown)}')
-    names = {j: n for n, j in joints.items()}
-    held = {j: given.get(names[j], _rest(c.getJointInfo(body_id, j))) for j in sorted(kinds)
-            if kinds[j] != c.JOINT_FIXED and j not in arm and j not in fingers
-            and j not in mimics}
-    home = p.get('home')
-    if home is not None and len(home) != len(arm):
-        raise _fact(entity.name, 'home', f'{len(home)} values, the arm has {len(arm)} joints '
-                    f'({", ".join(links[j] for j in arm)} move)')
-    if home is None:
-        home = [_middle(c.getJointInfo(body_id, j)) for j in arm]
-    home = [given.get(names[j], value) for j, value in zip(arm, home)]
-    for link in range(-1, c.getNumJoints(body_id)):
+    facts = arm_facts(entity, joint_infos(c, body_id), sdf)
+    infos, fingers = facts.infos, facts.fingers
+    links = {j: info.link for j, info in enumerate(infos)}
+    for link in range(-1, len(infos)):
         c.changeDynamics(body_id, link, lateralFriction=FRICTION)
-    for joint, value in zip(arm, home):
+    for joint, value in zip(facts.arm, facts.home):
         c.resetJointState(body_id, joint, value)
     gain = min(1.0, TRACKING_RATE / physics.settings.physics.rate_hz)
-    if revolute:
-        hand = _linkage(physics, entity, body_id, fingers, mimics, held, links, gain)
+    if facts.revolute:
+        hand = _linkage(physics, entity, body_id, facts, gain)
     else:
-        for key in ('finger_open', 'finger_closed'):
-            if key in p:
-                raise _fact(entity.name, key, 'the finger joints are prismatic: open is their '
-                            'upper limit, closed 0')
-        opening = sum(c.getJointInfo(body_id, j)[9] for j in fingers)
-        start = {}
-        for finger in fingers:   # open, or as given; a finger that mimics another follows it
-            parent, multiplier, offset = mimic_joints(path).get(names[finger], (None, 1.0, 0.0))
-            start[finger] = (given[names[finger]] if names[finger] in given else
-                             multiplier * given[parent] + offset if parent in given else
-                             c.getJointInfo(body_id, finger)[9])
-            c.resetJointState(body_id, finger, start[finger])
-        for child, (parent, _, _) in mimics.items():
+        for finger in fingers:
+            c.resetJointState(body_id, finger, facts.start[finger])
+        for child, (parent, _, _) in facts.mimics.items():
             _couple(c, body_id, parent, child, -1.0, 0.0)
         pads = p.get('pad_links') or [links[j] for j in fingers]
         hand = Gripper(c, entity.name, body_id, {'fingers': fingers}, [],
-                       max_joint_force=max(c.getJointInfo(body_id, j)[10] for j in fingers),
-                       max_force=p['max_force'], max_opening=opening, position_gain=gain,
-                       finger_links=pads)
-    for joint, value in held.items():
+                       max_joint_force=max(infos[j].effort for j in fingers),
+                       max_force=p['max_force'], max_opening=sum(infos[j].upper
+                                                                 for j in fingers),
+                       position_gain=gain, finger_links=pads)
+    for joint, value in facts.held.items():
         c.resetJointState(body_id, joint, value)
         c.setJointMotorControl2(body_id, joint, c.POSITION_CONTROL, targetPosition=value,
                                 force=HOLD_FORCE, positionGain=gain)
     physics.add_body(Body(entity.name, entity.cls, body_id, False, None, links=links,
                           driven=True, urdf=None if sdf else path))
     # Open, or held where a snapshot found the (prismatic) fingers until the plan moves them.
-    given_fingers = not revolute and any(names[j] in given for j in fingers)
-    hand.open(sum(start.values()) if given_fingers else hand.max_opening, speed=0.1)
+    hand.open(sum(facts.start.values()) if given_fingers(facts) else hand.max_opening,
+              speed=0.1)
     physics.grippers[entity.name] = hand
     tool_orientation = c.getQuaternionFromEuler(p.get('tool_rpy', (0.0, 0.0, 0.0)))
-    manipulator = Arm(c, entity.name, body_id, path, 1.0, (entity.pose.xyz, orientation), arm,
-                      tool, p['tool_offset'], hand, gain, tool_orientation)
+    manipulator = Arm(c, entity.name, body_id, path, 1.0, (entity.pose.xyz, orientation),
+                      facts.arm, facts.tool, p['tool_offset'], hand, gain, tool_orientation)
     manipulator.servo(*manipulator.tool_pose())
     physics.manipulators[entity.name] = manipulator
+
+
+def given_fingers(facts: ArmFacts) -> bool:
+    """Whether a snapshot gave the (prismatic) fingers' values: they start there, not
+    open."""
+    return not facts.revolute and any(facts.infos[j].name in facts.given
+                                      for j in facts.fingers)
 
 
 def check(name: str, properties: dict[str, Any]) -> None:
@@ -218,60 +346,23 @@ def _finger_kind(client: Any, robot: str, names: list[str], kinds: list[int]) ->
     return named[0] == 'revolute'
 
 
-def _linkage(physics: Physics, entity: Entity, body_id: int, fingers: list[int],
-             mimics: dict[int, tuple[int, float, float]], held: dict[int, float],
-             links: dict[int, str], gain: float) -> LinkageGripper:
-    """The revolute fingers' gripper: its opening table measured on the body before the
-    world runs (once per process, robot and pose), the fingers open."""
-    c, p = physics.client, entity.properties
-    infos = [c.getJointInfo(body_id, j) for j in fingers]
-    if 'finger_open' in p:
-        open_values, closed_values = list(p['finger_open']), list(p['finger_closed'])
-    else:
-        bad = [i[1].decode() for i in infos if not 0 < i[9] - i[8] <= 2 * math.pi]
-        if bad:
-            raise _fact(entity.name, 'finger_open', f'give finger_open and finger_closed: the '
-                        f'limits of {", ".join(bad)} in {Path(p["file"]).name} are not a '
-                        "finger's range (none, or wider than a turn)")
-        open_values, closed_values = [i[9] for i in infos], [i[8] for i in infos]
-    pad_names = p.get('pad_links')
-    if pad_names is None:
-        pads = _subtree(c, body_id, fingers, leaves=True)
-        if len(pads) < 2:
-            raise _fact(entity.name, 'pad_links', f'name the links that touch what the gripper '
-                        f'holds: the finger joints end in {", ".join(links[j] for j in pads)} '
-                        'alone')
-    else:
-        index = {name: j for j, name in links.items()}
-        pads = [index[n] for n in pad_names]
-    if 'finger_open' not in p:   # of the two limits, open is where the pads are further apart
-        ends = [gap(c, body_id, finger_values(fingers, open_values, closed_values, mimics,
-                                              held, u), pads) for u in (0.0, 1.0)]
-        if ends[1] < ends[0]:
-            open_values, closed_values = closed_values, open_values
-    for child, (parent, multiplier, offset) in mimics.items():
+def _linkage(physics: Physics, entity: Entity, body_id: int, facts: ArmFacts,
+             gain: float) -> LinkageGripper:
+    """The revolute fingers' gripper: its facts measured on the body before the world runs,
+    the mimic joints geared to the fingers, the fingers open."""
+    c, p, infos = physics.client, entity.properties, facts.infos
+    linkage = linkage_facts(c, body_id, entity, facts)
+    for child, (parent, multiplier, offset) in facts.mimics.items():
         _couple(c, body_id, parent, child, -1.0 / multiplier if multiplier else -1.0,
                 -offset / multiplier if multiplier else 0.0)
         c.setJointMotorControl2(body_id, child, c.VELOCITY_CONTROL, targetVelocity=0.0,
                                 force=0.0)
-    key = (p['file'], tuple(fingers), tuple(open_values), tuple(closed_values),
-           tuple(sorted(mimics.items())), tuple(sorted(held.items())), tuple(pads),
-           tuple(entity.pose.xyz), tuple(entity.pose.rpy))
-    table = cached_opening_table(key, c, body_id, fingers, open_values, closed_values,
-                                 mimics, held, pads)
-    if table[1][-1] - table[1][0] < MIN_STROKE:
-        raise _fact(entity.name, 'finger_open', f'the pads {", ".join(links[j] for j in pads)} '
-                    f'are {table[1][0] * 1000:.1f} mm apart closed and '
-                    f'{table[1][-1] * 1000:.1f} mm open: give the finger joints\' values '
-                    'that open and close the gripper (finger_open, finger_closed), and the '
-                    'links that touch what it holds (pad_links)')
-    for joint, value in finger_values(fingers, open_values, closed_values, mimics, held,
-                                      1.0).items():
+    for joint, value in linkage.start.items():
         c.resetJointState(body_id, joint, value)
-    torques = [max(i[10], 0.0) or HOLD_FORCE for i in infos]
-    carried = _subtree(c, body_id, [*fingers, *mimics])
-    hand = LinkageGripper(c, entity.name, body_id, fingers, open_values, closed_values, table,
-                          torques, p['max_force'], gain, [links[j] for j in pads], carried)
+    torques = [max(infos[j].effort, 0.0) or HOLD_FORCE for j in facts.fingers]
+    hand = LinkageGripper(c, entity.name, body_id, facts.fingers, linkage.open,
+                          linkage.closed, linkage.table, torques, p['max_force'], gain,
+                          [infos[j].link for j in linkage.pads], linkage.carried)
     physics.step_hooks.append(hand.after_step)
     return hand
 
@@ -292,15 +383,15 @@ def _subtree(client: Any, body_id: int, joints: list[int],
     return found if leaves else sorted(found)
 
 
-def _middle(info: Any) -> float:
-    lower, upper = info[8], info[9]
+def _middle(info: JointInfo) -> float:
+    lower, upper = info.lower, info.upper
     return 0.0 if upper < lower else (lower + upper) / 2   # continuous joints: 0
 
 
-def _rest(info: Any) -> float:
+def _rest(info: JointInfo) -> float:
     """Where a joint of the gripper that is neither finger nor mimic is held: 0, or the
     nearer limit."""
-    lower, upper = info[8], info[9]
+    lower, upper = info.lower, info.upper
     return 0.0 if upper < lower else min(max(0.0, lower), upper)
 
 

@@ -17,7 +17,7 @@ from typing import Any, Callable, TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from projection_server.simulation.physics import Physics, Shape
+from projection_server.simulation.physics import GripperBase, Physics, Shape
 
 if TYPE_CHECKING:
     from projection_server.settings import Settings
@@ -292,7 +292,7 @@ class MujocoPhysics(Physics):
         return points
 
 
-class MujocoGripper:
+class MujocoGripper(GripperBase):
     """:class:`~projection_server.simulation.physics.Gripper`'s commands on MuJoCo: the
     gantry's lift and approach and each finger's drive are joints of a large inertia that
     are set their speeds each step; a finger follows its drive through a tendon whose
@@ -306,22 +306,11 @@ class MujocoGripper:
                  max_joint_force: float, max_force: float = math.inf,
                  max_opening: float = math.inf, tracking_rate: float = 24.0,
                  finger_links: list[str] | None = None, mocap: int = -1):
-        self.name = name
-        self.body_id = body_id
-        self.pads = pads
+        super().__init__(name, body_id, joints, pads, max_force, max_opening, finger_links)
         self._physics = physics
-        self._lift = joints.get('lift')
-        self._approach = joints.get('approach')
-        self._fingers = tuple(joints['fingers'])
-        self._finger_links = (list(finger_links) if finger_links is not None
-                              else [pad.link_name for pad in pads])
         self._max_joint_force = max_joint_force
-        self.max_force = max_force
-        self.max_opening = max_opening
         self._rate = tracking_rate
         self._mocap = mocap
-        self.command = 'open'
-        self.commanded_force = 0.0
         model = physics.model
         self._drives = tuple(joints['drives'])
         self._tendons = np.array(joints['tendons'])
@@ -352,14 +341,6 @@ class MujocoGripper:
         self._applied: list[float] | None = None   # the tendons' friction losses last set
         self._apply_limits()
         physics.controllers.append(self._control)
-
-    @property
-    def finger_links(self) -> list[str]:
-        return self._finger_links
-
-    @property
-    def fingers(self) -> tuple[int, ...]:
-        return self._fingers
 
     def _control(self) -> None:
         """The servos' velocity commands and the drives' speeds of the next step."""
@@ -423,12 +404,6 @@ class MujocoGripper:
             self._set(j, min(opening, self.max_opening) / 2, 0.0, speed,
                       self._max_joint_force)
         self._apply_limits()
-
-    def opening(self) -> float:
-        return self.state()[0]
-
-    def measured_force(self) -> float:
-        return self.state()[1]
 
     def state(self) -> tuple[float, float]:
         """``(opening, measured force)``: the fingers' joint values' sum, and the mean

@@ -12,7 +12,9 @@ groups, as V-HACD writes them) becomes one mesh per object, each colliding as it
 hull, as PyBullet's compound of hulls does; MuJoCo collides every mesh as its convex hull.
 
 **An arm** (:func:`urdf_robot`) has the facts of :mod:`~projection_server.simulation.robots.
-urdf_arm`, read and checked as there; its joints' indices and limits are read from the
+urdf_arm`, read and checked there (:func:`~projection_server.simulation.robots.urdf_arm.
+arm_facts`, and a linkage's :func:`~projection_server.simulation.robots.urdf_arm.
+linkage_facts`); its joints' indices and limits are read from the
 kinematic copy that solves its poses (:mod:`~projection_server.simulation.robots.
 kinematics`, the same solver and solutions on both engines). Every arm joint, and the
 fingers, is moved as PyBullet's position and velocity motors move them: a *drive* beside the
@@ -56,11 +58,14 @@ from projection_server.simulation.engines.mujoco.builders import (_euler_quat, _
                                                                   _release, _subtree,
                                                                   add_drive, DRIVE_SOLIMP,
                                                                   DRIVE_SOLREF)
-from projection_server.simulation.physics import Body, Shape
+from projection_server.simulation.physics import Body, GripperBase, Shape
+from projection_server.simulation.robots.linkage import LEVER_STEP, OpeningTable
 from projection_server.simulation.robots.manipulator import _kinematics, Arm
+from projection_server.simulation.robots.urdf_arm import joint_infos
 
 if TYPE_CHECKING:
     from projection_server.simulation.engines.mujoco.physics import MujocoPhysics
+    from projection_server.simulation.robots.urdf_arm import ArmFacts, JointInfo, LinkageFacts
     from projection_server.simulation.engines.mujoco.world import WorldSpec
     from projection_server.simulation.scenario import Entity
 
@@ -197,16 +202,8 @@ def _attach(world: WorldSpec, child: Any, entity: Entity) -> Any:
 
 
 # --- the arm ----------------------------------------------------------------------------------
-class _Joint:
-    """A joint as PyBullet reads it from the URDF (its index is PyBullet's)."""
-
-    def __init__(self, info: Any):
-        self.name, self.kind, self.link = info[1].decode(), info[2], info[12].decode()
-        self.lower, self.upper, self.effort, self.parent = info[8], info[9], info[10], info[16]
-
-
 @functools.cache
-def _bullet_joints(path: str) -> tuple[_Joint, ...]:
+def _bullet_joints(path: str) -> tuple[JointInfo, ...]:
     """The URDF's joints in PyBullet's order, read once per process from a copy loaded in
     the kinematic solvers' client (the arm's joint indices are the solver's)."""
     from projection_server.simulation.robots.kinematics import _client, load_robot
@@ -219,8 +216,7 @@ def _bullet_joints(path: str) -> tuple[_Joint, ...]:
     if body < 0:
         raise ValueError(f'cannot load {path}')
     try:
-        return tuple(_Joint(client.getJointInfo(body, j))
-                     for j in range(client.getNumJoints(body)))
+        return joint_infos(client, body)
     finally:
         client.removeBody(body)
 
@@ -229,9 +225,9 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
     """The ``urdf`` robot model on MuJoCo (see the module doc)."""
     import pybullet
 
-    from projection_server.simulation.robots.urdf_arm import (_fact, _finger_kind, _middle,
-                                                              _rest, HOLD_FORCE, FRICTION,
-                                                              mimic_joints, TRACKING_RATE)
+    from projection_server.simulation.robots.urdf_arm import (arm_facts, given_fingers,
+                                                              HOLD_FORCE, FRICTION,
+                                                              TRACKING_RATE)
 
     p = entity.properties
     if not world.tool_control:
@@ -246,65 +242,14 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
     except ValueError:
         raise ProjectionError(ErrorKind.INVALID_SCENARIO,
                               f'{entity.name}: cannot load {path}') from None
-    joints = {j.name: i for i, j in enumerate(infos)}
-    link_index = {j.link: i for i, j in enumerate(infos)}
-    for key, names, known, what in (('tool_link', [p['tool_link']], link_index, 'link'),
-                                     ('finger_joints', p['finger_joints'], joints, 'joint'),
-                                     ('pad_links', p.get('pad_links', []), link_index, 'link')):
-        unknown = [n for n in names if n not in known]
-        if unknown:
-            raise _fact(entity.name, key, f'{file} has no {what} {", ".join(unknown)}')
-    fingers = [joints[n] for n in p['finger_joints']]
-    kinds = [infos[j].kind for j in fingers]
-    revolute = _finger_kind(pybullet, entity.name, p['finger_joints'], kinds)
-    for key in ('finger_open', 'finger_closed'):
-        if key in p and not revolute:
-            raise _fact(entity.name, key, 'the finger joints are prismatic: open is their '
-                        'upper limit, closed 0')
-    tool = link_index[p['tool_link']]
-    chain, link = [], tool
-    while link >= 0:
-        chain.append(link)
-        link = infos[link].parent
-    arm = [j for j in sorted(chain) if infos[j].kind != pybullet.JOINT_FIXED
-           and j not in fingers]
-    weak = [infos[j].link for j in arm if infos[j].effort <= 0]
-    if weak:
-        raise _fact(entity.name, 'tool_link', f'the joint to {", ".join(weak)} on the way to '
-                    f'{p["tool_link"]} has no effort limit in {file}: name a tool link before '
-                    'it, its offset reaching the pads')
-    mimic = mimic_joints(path)
-    mimics = {joints[c] for c, (parent, _, _) in mimic.items()
-              if c in joints and parent in joints}
-    given = dict(zip(p.get('joint_names', ()), p.get('joint_positions', ())))
-    unknown = [n for n in given if n not in joints]
-    if unknown:
-        raise _fact(entity.name, 'joint_names', f'{file} has no joint {", ".join(unknown)}')
-    # a Bullet joint info's layout, for urdf_arm's helpers
-    row = {i: (None,) * 8 + (j.lower, j.upper) for i, j in enumerate(infos)}
-    held = {j: given.get(infos[j].name, _rest(row[j])) for j in range(len(infos))
-            if infos[j].kind != pybullet.JOINT_FIXED and j not in arm and j not in fingers
-            and j not in mimics}
-    home = p.get('home')
-    if home is not None and len(home) != len(arm):
-        raise _fact(entity.name, 'home', f'{len(home)} values, the arm has {len(arm)} joints '
-                    f'({", ".join(infos[j].link for j in arm)} move)')
-    if home is None:
-        home = [_middle(row[j]) for j in arm]
-    home = [given.get(infos[j].name, value) for j, value in zip(arm, home)]
-    start = {}
+    facts = arm_facts(entity, infos)
+    joints, fingers, arm, held = facts.joints, facts.fingers, facts.arm, facts.held
+    mimic, tool = facts.mimic, facts.tool
+    start = dict(facts.start)
     linkage = None
-    if revolute:   # the fingers start open
-        mimic_ids = {joints[c]: (joints[parent], m, o) for c, (parent, m, o) in mimic.items()
-                     if c in joints and parent in joints}
-        linkage = _linkage(entity, infos, fingers, mimic_ids, held)
-        start = {j: v for j, v in linkage['start'].items() if j not in held}
-    for finger in [] if revolute else fingers:   # open, or as given; a mimic follows
-        name = infos[finger].name
-        parent, multiplier, offset = mimic.get(name, (None, 1.0, 0.0))
-        start[finger] = (given[name] if name in given else
-                         multiplier * given[parent] + offset if parent in given else
-                         infos[finger].upper)
+    if facts.revolute:   # the fingers start open
+        linkage = _linkage(entity, facts)
+        start = {j: v for j, v in linkage.start.items() if j not in held}
 
     child = load_urdf(path, entity.name)
     for coupling in child.equalities:   # mimic joints: geared, as stiff as the drives
@@ -323,7 +268,7 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
     for j in [*servos, *fingers]:
         add_drive(world, prefix + infos[j].name,
                   forces.get(j, max(infos[j].effort, 0.0) or HOLD_FORCE))
-    targets = dict(zip(arm, home)) | held
+    targets = dict(zip(arm, facts.home)) | held
     orientation = tuple(world_quaternion(entity.pose.rpy))
 
     def after(physics: MujocoPhysics) -> None:
@@ -354,12 +299,12 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
                          'tendons': [model.tendon(prefix + infos[j].name + '/drive').id
                                      for j in fingers]}
         if linkage is not None:
-            carried = [model.body(prefix + infos[j].link).id for j in linkage['carried']]
+            carried = [model.body(prefix + infos[j].link).id for j in linkage.carried]
             hand = MujocoLinkageGripper(
-                physics, entity.name, root, finger_joints, linkage['open'],
-                linkage['closed'], linkage['table'],
-                [max(infos[j].effort, 0.0) or HOLD_FORCE for j in fingers], p['max_force'],
-                TRACKING_RATE, [infos[j].link for j in linkage['pads']], carried)
+                physics, entity.name, root, finger_joints, linkage.open, linkage.closed,
+                linkage.table, [max(infos[j].effort, 0.0) or HOLD_FORCE for j in fingers],
+                p['max_force'], TRACKING_RATE, [infos[j].link for j in linkage.pads],
+                carried)
             hand.open(hand.max_opening, speed=0.1)
         else:
             pads = p.get('pad_links') or [infos[j].link for j in fingers]
@@ -368,8 +313,8 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
                 max_joint_force=max(infos[j].effort for j in fingers),
                 max_force=p['max_force'], max_opening=sum(infos[j].upper for j in fingers),
                 tracking_rate=TRACKING_RATE, finger_links=pads)
-            given_fingers = any(infos[j].name in given for j in fingers)
-            hand.open(sum(start.values()) if given_fingers else hand.max_opening, speed=0.1)
+            hand.open(sum(start.values()) if given_fingers(facts) else hand.max_opening,
+                      speed=0.1)
         physics.grippers[entity.name] = hand
         tool_orientation = world_quaternion(p.get('tool_rpy', (0.0, 0.0, 0.0)))
         qpos = {j: int(model.jnt_qposadr[i]) for j, i in joint.items()}
@@ -383,67 +328,24 @@ def urdf_robot(world: WorldSpec, entity: Entity, gripper: Entity | None = None) 
     world.after.append(after)
 
 
-def _linkage(entity: Entity, infos: tuple[_Joint, ...], fingers: list[int],
-             mimics: dict[int, tuple[int, float, float]], held: dict[int, float]
-             ) -> dict[str, Any]:
-    """Revolute fingers' facts as the PyBullet model finds them (urdf_arm's checks and
-    helpers, on a copy of the robot at its pose in the kinematic solvers' client): the
-    joints' open and closed values, the pads, the opening table (the same table as
-    PyBullet's, of the same key), the links the drive carries, and the joints' values
-    open."""
+def _linkage(entity: Entity, facts: ArmFacts) -> LinkageFacts:
+    """Revolute fingers' facts as the PyBullet model finds them
+    (:func:`~projection_server.simulation.robots.urdf_arm.linkage_facts`, on a copy of the
+    robot at its pose in the kinematic solvers' client: the same table as PyBullet's, of
+    the same key)."""
     from projection_server.simulation.robots.kinematics import _client, load_robot
-    from projection_server.simulation.robots.linkage import (cached_opening_table,
-                                                             finger_values, gap)
-    from projection_server.simulation.robots.urdf_arm import _fact, _subtree, MIN_STROKE
+    from projection_server.simulation.robots.urdf_arm import linkage_facts
 
-    p = entity.properties
     c = _client()
-    body = load_robot(c, p['file'], entity.pose.xyz, world_quaternion(entity.pose.rpy))
+    body = load_robot(c, entity.properties['file'], entity.pose.xyz,
+                      world_quaternion(entity.pose.rpy))
     try:
-        if 'finger_open' in p:
-            open_values, closed_values = list(p['finger_open']), list(p['finger_closed'])
-        else:
-            bad = [infos[j].name for j in fingers
-                   if not 0 < infos[j].upper - infos[j].lower <= 2 * math.pi]
-            if bad:
-                raise _fact(entity.name, 'finger_open', 'give finger_open and finger_closed: '
-                            f'the limits of {", ".join(bad)} in {Path(p["file"]).name} are '
-                            "not a finger's range (none, or wider than a turn)")
-            open_values = [infos[j].upper for j in fingers]
-            closed_values = [infos[j].lower for j in fingers]
-        names = {j.link: i for i, j in enumerate(infos)}
-        if p.get('pad_links') is None:
-            pads = _subtree(c, body, fingers, leaves=True)
-            if len(pads) < 2:
-                raise _fact(entity.name, 'pad_links', 'name the links that touch what the '
-                            'gripper holds: the finger joints end in '
-                            f'{", ".join(infos[j].link for j in pads)} alone')
-        else:
-            pads = [names[n] for n in p['pad_links']]
-        if 'finger_open' not in p:
-            ends = [gap(c, body, finger_values(fingers, open_values, closed_values, mimics,
-                                               held, u), pads) for u in (0.0, 1.0)]
-            if ends[1] < ends[0]:
-                open_values, closed_values = closed_values, open_values
-        key = (p['file'], tuple(fingers), tuple(open_values), tuple(closed_values),
-               tuple(sorted(mimics.items())), tuple(sorted(held.items())), tuple(pads),
-               tuple(entity.pose.xyz), tuple(entity.pose.rpy))
-        table = cached_opening_table(key, c, body, fingers, open_values, closed_values,
-                                     mimics, held, pads)
-        if table[1][-1] - table[1][0] < MIN_STROKE:
-            raise _fact(entity.name, 'finger_open', 'the pads are '
-                        f'{table[1][0] * 1000:.1f} mm apart closed and '
-                        f'{table[1][-1] * 1000:.1f} mm open: give finger_open, '
-                        'finger_closed and pad_links')
-        carried = _subtree(c, body, [*fingers, *mimics])
+        return linkage_facts(c, body, entity, facts)
     finally:
         c.removeBody(body)
-    return {'open': open_values, 'closed': closed_values, 'pads': pads, 'table': table,
-            'carried': carried,
-            'start': finger_values(fingers, open_values, closed_values, mimics, held, 1.0)}
 
 
-class MujocoLinkageGripper:
+class MujocoLinkageGripper(GripperBase):
     """:class:`~projection_server.simulation.robots.linkage.LinkageGripper` on MuJoCo: the
     same table, levers and commands, each finger joint moved through its drive (the
     tendon's friction loss its torque limit: closing, the force asked for times the
@@ -455,65 +357,40 @@ class MujocoLinkageGripper:
                  closed_values: Sequence[float], table: tuple[Sequence[float], Sequence[float]],
                  torques: Sequence[float], max_force: float, rate: float,
                  finger_links: Sequence[str], carried: Sequence[int]):
-        from projection_server.simulation.robots.linkage import LEVER_STEP
-
-        self.name, self.body_id, self.pads = name, body_id, []
+        self._table = OpeningTable(open_values, closed_values, table)
+        super().__init__(name, body_id, joints, [], max_force, self._table.max_opening,
+                         finger_links)
         self._physics = physics
         model = physics.model
-        self._fingers = tuple(joints['fingers'])
-        self._finger_links = list(finger_links)
         self._qpos = np.array([model.jnt_qposadr[j] for j in joints['fingers']])
         self._drive_dof = np.array([model.jnt_dofadr[j] for j in joints['drives']])
         self._tendons = np.array(joints['tendons'])
-        self._open = np.asarray(open_values, float)
-        self._closed = np.asarray(closed_values, float)
-        self._span = self._open - self._closed
-        self._u, self._openings = np.asarray(table[0], float), np.asarray(table[1], float)
-        slopes = np.diff(self._openings) / np.diff(self._u)
-        self._slope_u = (self._u[:-1] + self._u[1:]) / 2
-        self._slopes = np.maximum(np.abs(slopes), 1e-9)
-        self._mean_slope = max((self._openings[-1] - self._openings[0])
-                               / (self._u[-1] - self._u[0]), 1e-9)
         self._torques = np.asarray(torques, float)
-        self.max_force = max_force
-        self.max_opening = float(self._openings[-1])
         self._rate = rate
-        self._lever_step = LEVER_STEP
-        self.command, self.commanded_force = 'open', 0.0
         self._speed = 0.0
-        self._target = self._open.copy()
+        self._target = self._table.open.copy()
         self._limit = np.full(len(self._fingers), math.inf)
         self._set_at = 1.0
         self._carried = np.asarray(carried, int)
         g = -float(model.opt.gravity[2])
-        self._lift = np.array([[0.0, 0.0, float(model.body_mass[b]) * g] for b in carried])
+        self._weights = np.array([[0.0, 0.0, float(model.body_mass[b]) * g] for b in carried])
         physics.controllers.append(self._control)
 
-    @property
-    def finger_links(self) -> list[str]:
-        return self._finger_links
-
-    @property
-    def fingers(self) -> tuple[int, ...]:
-        return self._fingers
-
     def position(self) -> float:
+        table = self._table
         q = self._physics.data.qpos[self._qpos]
-        return float(np.mean((q - self._closed) / self._span))
+        return float(np.mean((q - table.closed) / table.span))
 
     def levers(self, u: float) -> np.ndarray:
-        from projection_server.simulation.robots.linkage import MIN_LEVER
-
-        slope = float(np.interp(u, self._slope_u, self._slopes))
-        return np.maximum(slope / (len(self._fingers) * np.abs(self._span)), MIN_LEVER)
+        return self._table.levers(u)
 
     def _control(self) -> None:
         data = self._physics.data
         if self.command == 'close':
             u = self.position()
-            if abs(u - self._set_at) >= self._lever_step:
+            if abs(u - self._set_at) >= LEVER_STEP:
                 self._set_closing(u)
-            speed = np.full(len(self._fingers), -2 * self._speed / self._mean_slope) * self._span
+            speed = np.full(len(self._fingers), -self._table.rate(self._speed)) * self._table.span
         else:
             error = self._target - data.qpos[self._qpos]
             speed = np.clip(self._rate * error, -self._limit, self._limit)
@@ -530,22 +407,16 @@ class MujocoLinkageGripper:
         self._speed = speed
         self._set_closing(self.position())
         if len(self._carried):
-            self._physics.data.xfrc_applied[self._carried, :3] = self._lift
+            self._physics.data.xfrc_applied[self._carried, :3] = self._weights
 
     def open(self, opening: float, speed: float) -> None:
         self.command, self.commanded_force = 'open', 0.0
-        u = float(np.interp(min(opening, self.max_opening), self._openings, self._u))
-        self._target = self._closed + u * self._span
-        self._limit = 2 * speed / self._mean_slope * np.abs(self._span)
+        table = self._table
+        self._target = table.closed + table.position_at(opening) * table.span
+        self._limit = table.rate(speed) * np.abs(table.span)
         self._physics.model.tendon_frictionloss[self._tendons] = self._torques
         if len(self._carried):
             self._physics.data.xfrc_applied[self._carried, :3] = 0.0
-
-    def opening(self) -> float:
-        return self.state()[0]
-
-    def measured_force(self) -> float:
-        return self.state()[1]
 
     def state(self) -> tuple[float, float]:
         """``(opening, measured force)``: the opening at the fingers' position; the mean
@@ -558,8 +429,7 @@ class MujocoLinkageGripper:
         tendon = mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON
         torque = {i: abs(f) for i, f, k in zip(ids, forces, kinds) if k == tendon}
         torques = np.array([torque.get(int(t), 0.0) for t in self._tendons])
-        return (float(np.interp(u, self._u, self._openings)),
-                float(np.mean(torques / self.levers(u))))
+        return self._table.opening_at(u), float(np.mean(torques / self.levers(u)))
 
     def pad_faces(self) -> list[Any]:
         return []
