@@ -2,7 +2,7 @@
 world, chooses a grip by projecting, executes it on the stand-in and records what happened.
 
     tools/with_env.sh python bench/robot_loop.py [--eggs 100] [--seed 1] [--options OPTS]
-        [--physics DICT] [--report TRIALS_JSON ...]
+        [--physics DICT] [--trials PATH] [--report TRIALS_JSON ...]
 
 Two processes stand for the robot and its brain: ``projection_standin_robot`` (the world:
 a Panda and an egg in a PyBullet world of its own at 4x the projection's rate and solver
@@ -153,6 +153,9 @@ def main() -> None:
     parser.add_argument('--physics', default='',
                         help="the decisions' physics(Dict), e.g. '_{engine: mujoco}' (the "
                              "stand-in's world stays PyBullet's)")
+    parser.add_argument('--trials', type=Path,
+                        help="where to keep the trials as they are made (default: the run's "
+                             "temporary directory's trials.json)")
     parser.add_argument('--report', metavar='TRIALS_JSON', nargs='+',
                         help="only report the trials of earlier runs' trials.json, together "
                              "(runs of disjoint seeds, e.g. two halves run side by side)")
@@ -166,6 +169,7 @@ def main() -> None:
     from projection_server.client.launcher import NodeProcess
     rclpy.init()
     tmp = Path(tempfile.mkdtemp(prefix='bench_robot_loop_'))
+    kept = args.trials or tmp / 'trials.json'
     print(f'settings: {args.eggs} eggs from seed {args.seed}; belief {BELIEF}; truth '
           f'friction U({args.friction}), breaking force U({args.breaking_force}); forces '
           f'{forces}; (c) options {args.options or "the defaults"}; decisions\' physics '
@@ -202,7 +206,7 @@ def main() -> None:
                                  'act': act}
                 trials.append(row)
                 # Kept as it goes: a run stopped early still has every trial made.
-                (tmp / 'trials.json').write_text(json.dumps(trials, indent=1))
+                kept.write_text(json.dumps(trials, indent=1))
                 b, cc = row['b'], row['c']
                 print(f'{seed:4d} {truth["friction"]:8.3f} {truth["breaking_force"]:7.2f} | '
                       f'{b["force"]:5.1f} {"BAD" if b["undesired"] else "ok":>4} '
@@ -214,7 +218,7 @@ def main() -> None:
         node.destroy_node()
         rclpy.try_shutdown()
     report(trials)
-    print(f'\ntrials: {tmp / "trials.json"}')
+    print(f'\ntrials: {kept}')
 
 
 def report(trials: list[dict[str, Any]]) -> None:
