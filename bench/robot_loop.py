@@ -204,6 +204,7 @@ def main() -> None:
                     row[name] = {'force': force, 'undesired': undesired(events),
                                  'events': events, 'sense': sense, 'decide': decide,
                                  'act': act}
+                row['c']['choice'] = how
                 trials.append(row)
                 # Kept as it goes: a run stopped early still has every trial made.
                 kept.write_text(json.dumps(trials, indent=1))
