@@ -4,10 +4,12 @@ and a program or unit an engine cannot run is refused before any world is built.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 import pybullet
+import pybullet_data
 import pytest
 
 from projection_server.simulation import load_settings, ProjectionError
@@ -82,6 +84,41 @@ def test_a_gripper_closes_at_its_speed_and_pushes_with_the_force_asked_for(make_
     for _ in range(480):   # closed on nothing: against its joint limits
         physics.step()
     assert gripper.command == 'close' and gripper.commanded_force == 4.0
+
+
+PANDA = {'name': 'panda_robot', 'class': 'robot', 'pose': {'xyz': [-0.68, 0.0, 0.72]},
+         'properties': {'model': 'urdf',
+                        'file': f'{pybullet_data.getDataPath()}/franka_panda/panda.urdf',
+                        'tool_link': 'panda_hand', 'tool_offset': [0, 0, 0.1034],
+                        'finger_joints': ['panda_finger_joint1', 'panda_finger_joint2'],
+                        'max_force': 20.0, 'home': [0, -0.785, 0, -2.356, 0, 1.571, 0.785]}}
+
+
+@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
+@pytest.mark.parametrize('robot', ['panda', 'pr2'])
+def test_fingers_closed_on_nothing_stop_at_their_joint_limits(make_scenario, engine, robot):
+    # PyBullet's limits hold a finger pushed into them with 20 N; MuJoCo's are soft, and
+    # at their default softness let it sink (1 - d) timeconst^2 F/m past: 4 mm of the
+    # Panda's 0.1 kg fingers, 23 mm of the PR2's 20 g ones (at the drives' d, 8 um and
+    # 40 um; PyBullet's PR2 0.14 mm). Both hands close to 0, their joints' lower limits.
+    scenario = make_scenario()
+    if robot == 'panda':
+        scenario['entities'][1] = copy.deepcopy(PANDA)
+    name = scenario['entities'][1]['name']
+    del scenario['entities'][2]   # nothing between the pads
+    settings = load_settings().for_projection('plan', {'engine': engine})
+    session = engines.get(engine).open()
+    try:
+        physics = session.build_world(parse_scenario(scenario), settings, tool_control=True)
+        gripper = physics.grippers[name]
+        gripper.close(20.0, 0.1)
+        for _ in range(int(1.0 * settings.physics.rate_hz)):   # closed by 0.5 s, then held
+            physics.step()
+        opening, force = gripper.state()
+    finally:
+        session.close()
+    assert opening == pytest.approx(0.0, abs=2 * 0.25e-3), opening   # 0.25 mm a finger
+    assert force == pytest.approx(20.0, rel=0.1)   # PyBullet's PR2 motor: 18.4 N of it
 
 
 def test_a_program_or_a_shape_an_engine_cannot_run_is_refused(make_scenario):
@@ -185,7 +222,6 @@ def test_a_urdfs_mesh_outside_the_asset_directories_is_refused_on_mujoco(tmp_pat
 
 
 def test_a_mesh_file_of_several_objects_collides_as_one_hull_each_on_mujoco():
-    import pybullet_data
 
     from projection_server.simulation.engines.mujoco.urdf import load_urdf, obj_parts
 

@@ -356,8 +356,15 @@ def add_drive(world: WorldSpec, name: str, force: float) -> None:
     """A drive for the joint ``name``: a body beside the joint's on the same axis (named
     ``name/drive``, as its joint), of a huge joint inertia that a controller sets the speed
     of every step, held to the joint by a tendon ``name/drive`` of the two whose friction
-    loss is ``force`` (the most the drive pushes the joint with)."""
+    loss is ``force`` (the most the drive pushes the joint with); the joint's limits as
+    stiff as that tendon."""
     joint = world.spec.joint(name)
+    # A MuJoCo limit is a soft constraint: a joint pushed into it with F rests
+    # (1 - d) timeconst^2 F/m past it (MuJoCo's modelling guide, solver parameters). At the
+    # default d = 0.95 that is 4 mm for the Panda's 0.1 kg fingers at 20 N and 1 mm/N for
+    # the PR2's 20 g ones; at 0.9999, MuJoCo's stiffest, 8 um and 2 um/N, less than
+    # PyBullet's own PR2 fingers sink at 20 N (0.14 mm; its limits are hard otherwise).
+    joint.solref_limit, joint.solimp_limit = list(DRIVE_SOLREF), list(DRIVE_SOLIMP)
     body = joint.parent
     drive = body.parent.add_body(name=name + '/drive', pos=list(body.pos),
                                  quat=list(body.quat), mass=DRIVE_MASS,
