@@ -12,6 +12,7 @@ from projection_interfaces.srv import PrologQuery
 import pytest
 
 from test.nodes import caller, own_server
+from test.queries import BOX_ON_THE_TABLE, PUSH_BY_D
 
 Q = PrologQuery.Request
 SIM_TIMEOUT = 120.0
@@ -21,14 +22,11 @@ GRID_SIZE = 79   # range(0.5, 20.0, 0.25)
 BOUNDARY = ('outcome_boundary(grasping, grasp_object, '
             '[(F, force, range(0.5, 20)), (P, position, [0.0])], {options}, TL, '
             f'{OK}, B)')
-PUSH = '''create_scenario(S), add_to_scenario(S, [kitchen_env, pr2_robot,
-        entity(box1, rigid_object, _{{shape: box, size_x: 0.05, size_y: 0.05, size_z: 0.05,
-                                      mass: 0.2, friction: 0.4,
-                                      pose: _{{xyz: [0.45, 0.0, 0.745]}}}})]),
-    best_parametrization(S, plan([close_gripper(10),
-                             move_to(box1, [-0.09, 0, 0], [orientation(side(0)), speed(1.0)]),
-                             move_by([D, 0, 0], [speed(0.1)]), move_by([-0.1, 0, 0])]),
-                         [(D, distance, range(0.05, 0.3))], {options}, TL,
+# The push of the box that moves it most and keeps it on the table, with
+# best_parametrization's ``{options}``; Fell and Moved from the best projection's timeline.
+PUSH = f'''{BOX_ON_THE_TABLE},
+    best_parametrization(S, {PUSH_BY_D},
+                         [(D, distance, range(0.05, 0.3))], {{options}}, TL,
                          \\+ occurs(drop(box1), _, TL), displacement(box1), Best),
     ( occurs(drop(box1), _, TL) -> Fell = yes ; Fell = no ),
     quantity(displacement(box1), Moved, TL)'''

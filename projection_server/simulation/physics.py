@@ -16,7 +16,6 @@ from typing import Any, Callable, NamedTuple, Protocol, Sequence, TYPE_CHECKING
 import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
-from projection_server.simulation.batter.neighbours import NeighbourList, NeighbourLists
 
 if TYPE_CHECKING:
     from projection_server.settings import Settings
@@ -374,8 +373,6 @@ class Physics:
         # fluid -> its particles, read once per step however many step hooks and samples
         # want them
         self._fluid_states: dict[str, _FluidState] = {}
-        # (fluid, skin) -> the Verlet lists of its particles that the step hooks share
-        self._neighbour_lists: dict[tuple[str, float], NeighbourLists] = {}
         # (bodies_version, {(body, link): (body name, link name)}) of contacts()
         self._frames: tuple[int, dict[tuple[int, int], tuple[str | None, str]]] = (-1, {})
 
@@ -575,15 +572,6 @@ class Physics:
     def particles_moved(self) -> None:
         """Forget the particles' positions read so far: they were moved, not stepped."""
         self._fluid_states = {}
-
-    def neighbour_list(self, fluid: str, cutoff: float, skin: float) -> NeighbourList:
-        """A Verlet list of the pairs of ``fluid``'s particles closer than ``cutoff``
-        (:class:`~.batter.neighbours.NeighbourList`); the lists of one fluid and skin share
-        their rebuilds and their distances each step. Ask for them before the first step."""
-        shared = self._neighbour_lists.get((fluid, skin))
-        if shared is None:
-            shared = self._neighbour_lists[(fluid, skin)] = NeighbourLists(skin)
-        return NeighbourList(cutoff, skin, shared)
 
     def gripper_opening(self, gripper: str) -> float:
         return self.grippers[gripper].opening()

@@ -70,7 +70,6 @@ class WorldListener:
                 make(JointState, topic('joint_states'), self._on_joints, JOINT_STATES_QOS),
                 make(TFMessage, topic('/tf'), self._on_tf, TF_QOS),
                 make(TFMessage, topic('/tf_static'), self._on_tf_static, TF_STATIC_QOS)]
-        self._subscriptions = subs
         clock = node.get_clock()
         self.world = RobotWorld(clock=lambda: clock.now().nanoseconds,
                                 topics={'robot_description': subs[0].topic_name,
@@ -103,8 +102,7 @@ class WorldListener:
     def destroy(self) -> None:
         self._executor.shutdown()
         self._thread.join(timeout=5.0)
-        self._node.destroy_node()
-        self._subscriptions = []
+        self._node.destroy_node()   # and its subscriptions, which the node holds
 
 
 def _transforms(msg: TFMessage, static: bool) -> list[Transform]:

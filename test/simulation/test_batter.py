@@ -4,15 +4,17 @@ relaxes relative velocity at its rate whatever the time step."""
 
 from __future__ import annotations
 
+import gc
 import math
+import weakref
 
 import numpy as np
 import pybullet
 import pytest
 
 from projection_server.settings import load_settings
-from projection_server.simulation.batter import (BatterForces, NeighbourList, NeighbourLists,
-                                                 pairs)
+from projection_server.simulation.batter import (BatterForces, fluid_neighbour_list,
+                                                 NeighbourList, NeighbourLists, pairs)
 from projection_server.simulation.batter.forces import RUPTURE_GAP
 from projection_server.simulation.physics import Body, Fluid, Physics, bound_client
 
@@ -56,6 +58,27 @@ def test_lists_sharing_their_verlet_lists_give_what_lists_of_their_own_do_to_the
             for a, b in zip(drawn(x), own(x)):
                 assert a.dtype == b.dtype and np.array_equal(a, b)   # the same order too
     assert shared.rebuilds == lists[0][1].rebuilds > 1
+
+
+def test_the_lists_of_a_worlds_fluid_and_skin_share_their_rebuilds_and_go_with_the_world():
+    physics, other = world(), world()
+    forces = fluid_neighbour_list(physics, 'mix', 0.012, 0.0024)
+    heat = fluid_neighbour_list(physics, 'mix', 0.0101, 0.0024)
+    apart = [fluid_neighbour_list(physics, 'mix', 0.012, 0.003),
+             fluid_neighbour_list(physics, 'dough', 0.012, 0.0024),
+             fluid_neighbour_list(other, 'mix', 0.012, 0.0024)]
+    x = np.random.default_rng(7).random((100, 3)) * 0.05
+    for neighbours in [forces, heat, *apart]:
+        neighbours(x)
+    forces(x + 0.01)   # moved past half the skin: rebuilt, for the heat's list too
+    assert forces.rebuilds == heat.rebuilds == 2
+    assert [neighbours.rebuilds for neighbours in apart] == [1, 1, 1]
+    for p in (physics, other):
+        p.client.disconnect()
+    gone = weakref.ref(physics)
+    del physics
+    gc.collect()
+    assert gone() is None   # its lists do not keep a world alive
 
 
 def world(rate_hz=240, gravity=0.0):

@@ -21,7 +21,7 @@ A particle stands for a blob of batter, and two blobs that touch share a liquid 
 Per step: one batched read of the particles' positions (and velocities, for viscosity;
 :meth:`Physics.particle_state`), numpy over the pairs within the rupture distance
 (a Verlet list, :class:`~.neighbours.NeighbourList`, shared with the batter's heat:
-:meth:`Physics.neighbour_list`), one ``bincount`` of the pairs' forces and one
+:func:`~.neighbours.fluid_neighbour_list`), one ``bincount`` of the pairs' forces and one
 ``applyExternalForce`` per particle that has a neighbour.
 """
 
@@ -31,6 +31,8 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from projection_server.simulation.batter.neighbours import fluid_neighbour_list
 
 if TYPE_CHECKING:
     from projection_server.simulation.physics import Physics
@@ -53,7 +55,8 @@ class BatterForces:
         self._ids = physics.fluids[name].body_ids
         self._contact = 2 * radius
         self._cutoff = (2 + RUPTURE_GAP) * radius
-        self._neighbours = physics.neighbour_list(name, self._cutoff, RUPTURE_GAP * radius)
+        self._neighbours = fluid_neighbour_list(physics, name, self._cutoff,
+                                               RUPTURE_GAP * radius)
         self._bridge = math.pi * radius * surface_tension          # N at contact
         self._dt = dt = 1.0 / physics.settings.physics.rate_hz
         self._rate = 2 * viscosity * dt / KISSING   # a touching pair's decay exponent a step

@@ -48,8 +48,8 @@ are made again when the world is built.
 
 Cost per step: one read of the positions (shared with the batter's forces and the monitor,
 :meth:`Physics.particle_state`), numpy over the touching pairs (drawn from the Verlet list
-that the batter's forces use, :meth:`Physics.neighbour_list`), and PyBullet calls only for
-bonds that form or break.
+that the batter's forces use, :func:`~.neighbours.fluid_neighbour_list`), and PyBullet calls
+only for bonds that form or break.
 """
 
 from __future__ import annotations
@@ -60,6 +60,7 @@ from typing import Any, NamedTuple, TYPE_CHECKING
 import numpy as np
 
 from projection_server.simulation.batter.forces import KISSING
+from projection_server.simulation.batter.neighbours import fluid_neighbour_list
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -148,7 +149,7 @@ class BatterHeat:
         self._air = -math.expm1(-air_cooling_rate * dt)
         self._exchange = min(-math.expm1(-2.0 * conduction_rate * dt) / 2.0, 1.0 / KISSING)
         contact = 2.0 * radius * (1.0 + TOUCH_TOLERANCE)
-        self._neighbours = physics.neighbour_list(name, contact, 0.5 * radius)
+        self._neighbours = fluid_neighbour_list(physics, name, contact, 0.5 * radius)
         self._break = (2.0 + BREAK_GAP) * radius
         self._strength = bond_strength
         self._n = n

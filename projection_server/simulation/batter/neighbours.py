@@ -8,9 +8,15 @@ the sorted keys for each offset (``searchsorted``): no Python loop over points.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+import weakref
+
 import numpy as np
 
-__all__ = ['NeighbourList', 'NeighbourLists', 'pairs']
+if TYPE_CHECKING:
+    from projection_server.simulation.physics import Physics
+
+__all__ = ['NeighbourList', 'NeighbourLists', 'fluid_neighbour_list', 'pairs']
 
 # The cell itself and 13 of its 26 neighbours: every unordered pair of cells once.
 _HALF_SHELL = np.array([(0, 0, 0)] + [
@@ -177,3 +183,21 @@ class NeighbourList:
     def __call__(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:func:`pairs` of ``positions`` within the cutoff."""
         return self._shared.within(self.cutoff, positions)
+
+
+# physics -> (fluid, skin) -> the Verlet lists of its particles that its step hooks share;
+# weak, so that the lists go with the world they were made for.
+_FLUID_LISTS: weakref.WeakKeyDictionary[Physics, dict[tuple[str, float], NeighbourLists]] = (
+    weakref.WeakKeyDictionary())
+
+
+def fluid_neighbour_list(physics: Physics, fluid: str, cutoff: float,
+                         skin: float) -> NeighbourList:
+    """A Verlet list of the pairs of ``fluid``'s particles in ``physics`` closer than
+    ``cutoff``; the lists of one physics, fluid and skin share their rebuilds and their
+    distances each step. Ask for them before the first step."""
+    lists = _FLUID_LISTS.setdefault(physics, {})
+    shared = lists.get((fluid, skin))
+    if shared is None:
+        shared = lists[(fluid, skin)] = NeighbourLists(skin)
+    return NeighbourList(cutoff, skin, shared)

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from projection_server.simulation.physics import GripperBase, Physics, Shape
+from projection_server.simulation.robots.manipulator import FloatingToolBase
 
 if TYPE_CHECKING:
     from projection_server.settings import Settings
@@ -454,27 +455,21 @@ def _rotate(q: Quat, v: Vec3) -> Vec3:
     return (v[0] + 2 * (w * cx + dx), v[1] + 2 * (w * cy + dy), v[2] + 2 * (w * cz + dz))
 
 
-class MujocoFloatingTool:
-    """:class:`~projection_server.simulation.robots.manipulator.FloatingTool` on MuJoCo: the
-    free gripper is welded to a mocap body that the plan's tool pose moves, softly (a
-    weld's reference time constant of 1 / the tracking rate), so that the tool follows as
+class MujocoFloatingTool(FloatingToolBase):
+    """A floating tool
+    (:class:`~projection_server.simulation.robots.manipulator.FloatingToolBase`) on MuJoCo:
+    the free gripper is welded to a mocap body that the plan's tool pose moves, softly (a weld's
+    reference time constant of 1 / the tracking rate), so that the tool follows as
     PyBullet's moving constraint has it follow, and what it pushes pushes back."""
-
-    every_step = True
 
     def __init__(self, physics: MujocoPhysics, name: str, body_id: int, gripper: Any,
                  tool: tuple[Any, Any], home: Any, reach: tuple[tuple[float, float], ...],
                  mocap: int):
-        self.name = name
-        self.body_id = body_id
-        self.gripper = gripper
+        super().__init__(name, body_id, gripper, home, reach)
         self._physics = physics
-        self._home = np.asarray(home, float)
-        self._reach = reach
         self._tool = (tuple(tool[0]), tuple(tool[1]))
         self._link_in_tool = MujocoPhysics.invert_transform(*self._tool)
         self._mocap = mocap
-        self._target: tuple[tuple[float, ...], tuple[float, ...]] | None = None
         self.servo(*self.tool_pose())
 
     def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
@@ -484,22 +479,8 @@ class MujocoFloatingTool:
         position, orientation = MujocoPhysics.multiply_transforms(*link, *self._tool)
         return np.asarray(position), np.asarray(orientation)
 
-    def check_reach(self, position: Any, orientation: Any, what: str) -> None:
-        from projection_server.simulation.robots.manipulator import _unreachable
-
-        offset = np.asarray(position, float) - self._home
-        low = np.array([-self._reach[0][1], -self._reach[1][1], self._reach[2][0]])
-        high = np.array([self._reach[0][1], self._reach[1][1], self._reach[2][1]])
-        outside = float(np.maximum(low - offset, offset - high).max())
-        if outside > 0:
-            raise _unreachable(self.name, what, position, outside, 0.0)
-
-    def servo(self, position: Any, orientation: Any) -> None:
-        target = (tuple(map(float, position)), tuple(map(float, orientation)))
-        if target == self._target:
-            return
-        self._target = target
-        link = MujocoPhysics.multiply_transforms(*target, *self._link_in_tool)
+    def _move(self, position: tuple[float, ...], orientation: tuple[float, ...]) -> None:
+        link = MujocoPhysics.multiply_transforms(position, orientation, *self._link_in_tool)
         d = self._physics.data
         d.mocap_pos[self._mocap] = link[0]
         x, y, z, w = link[1]

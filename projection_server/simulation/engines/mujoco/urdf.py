@@ -60,7 +60,7 @@ from projection_server.simulation.engines.mujoco.builders import (_euler_quat, _
                                                                   DRIVE_SOLREF)
 from projection_server.simulation.physics import Body, GripperBase, Shape
 from projection_server.simulation.robots.linkage import LEVER_STEP, OpeningTable
-from projection_server.simulation.robots.manipulator import _kinematics, Arm
+from projection_server.simulation.robots.manipulator import ArmBase
 from projection_server.simulation.robots.urdf_arm import joint_infos
 
 if TYPE_CHECKING:
@@ -441,34 +441,27 @@ def world_quaternion(rpy: Sequence[float]) -> tuple[float, float, float, float]:
     return MujocoPhysics.quaternion_from_euler(rpy)
 
 
-class MujocoArm(Arm):
-    """:class:`~projection_server.simulation.robots.manipulator.Arm` on MuJoCo: the same
-    solver on the same kinematic copy; the joints are read from MuJoCo's ``qpos`` and
-    servoed through their drives (``servos``: PyBullet index, the drive's dof), at
-    ``rate`` times their error a second, each step; ``targets`` their first targets."""
+class MujocoArm(ArmBase):
+    """An arm (:class:`~projection_server.simulation.robots.manipulator.ArmBase`) on MuJoCo:
+    the same solver on the same kinematic copy as PyBullet's; the joints are read from
+    MuJoCo's ``qpos`` and servoed through their drives (``servos``: PyBullet index, the
+    drive's dof), at ``rate`` times their error a second, each step; ``targets`` their
+    first targets."""
 
     def __init__(self, physics: MujocoPhysics, name: str, body_id: int, urdf: str,
                  base: tuple[Sequence[float], Sequence[float]], joints: Sequence[int],
                  tool_link: int, tool_offset: Sequence[float], gripper: Any,
                  tool_orientation: Sequence[float], qpos: dict[int, int],
                  servos: list[tuple[int, int]], targets: dict[int, float], rate: float):
-        self.name = name
-        self.body_id = body_id
-        self.gripper = gripper
+        super().__init__(name, body_id, gripper, urdf, 1.0, base, joints, tool_link,
+                         tool_offset, tool_orientation)
         self._physics = physics
-        self.kinematics = _kinematics(urdf, (tuple(base[0]), tuple(base[1])), tool_link,
-                                      tuple(tool_offset), tuple(joints), 1.0,
-                                      tuple(tool_orientation))
-        self._joints = self.kinematics.movable
-        self._arm = list(joints)
         self._movable_qpos = np.array([qpos[j] for j in self._joints])
         self._servo_qpos = np.array([qpos[j] for j, _ in servos])
         self._servo_dof = np.array([dof for _, dof in servos])
         self._slot = {j: i for i, (j, _) in enumerate(servos)}
         self._targets = np.array([targets[j] for j, _ in servos], float)
         self._rate = rate
-        self._target: tuple[tuple[float, ...], tuple[float, ...]] | None = None
-        self._solution: np.ndarray | None = None
         self._home = np.asarray(self._now())
         physics.controllers.append(self._control)
 
@@ -480,15 +473,9 @@ class MujocoArm(Arm):
         data.qvel[self._servo_dof] = self._rate * (self._targets
                                                    - data.qpos[self._servo_qpos])
 
-    def servo(self, position: Sequence[float], orientation: Sequence[float]) -> None:
-        target = (tuple(position), tuple(orientation))
-        if target == self._target:
-            return
-        seed = self._solution if self._solution is not None else self._now()
-        solution = self._solve(position, orientation, seed, 'a pose of its path')
-        self._target, self._solution = target, solution
-        for j in self._arm:
-            self._targets[self._slot[j]] = solution[self._joints.index(j)]
+    def _command(self, values: list[float]) -> None:
+        for j, value in zip(self._arm, values):
+            self._targets[self._slot[j]] = value
 
 
 # --- rigid objects ----------------------------------------------------------------------------
