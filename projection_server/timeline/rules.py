@@ -7,6 +7,7 @@ of them all.
 
 from __future__ import annotations
 
+import bisect
 from collections import defaultdict
 import functools
 import math
@@ -50,8 +51,10 @@ def _upside_down(sample: Sample, body: str, references: list[str]) -> bool:
     a, b = (sample.poses.get(name) for name in references)
     if a is None or b is None or body not in sample.poses:
         return False
-    positions = [pose[0] for name, pose in sample.poses.items()
-                 if name == body or name.startswith(body + '/')]
+    # Only the body's own frames are composed (a robot's link chain need not be).
+    prefix = body + '/'
+    positions = [sample.poses[name][0] for name in sample.poses.names()
+                 if name == body or name.startswith(prefix)]
     normal = turning.upper_normal(np.array(positions), sample.poses[body][0], a[0], b[0])
     return turning.is_upside_down(normal)
 
@@ -91,53 +94,68 @@ class Rules:
     # --- fluents ------------------------------------------------------------------------
     def _sample_fluents(self) -> None:
         cos_support = math.cos(self.settings.support_max_angle)
+        force_min = self.settings.contact_force_min
         booleans = self._booleans
+        any_touching, robot_touching, gripper_held = (self._touching, self._robot_touching,
+                                                      self._held)
+        grippers = set(self.grippers)
         supports: list[tuple[str, tuple[str, ...]]] = []   # the supported_by keys
         references = {body: [f'{body}/{link}' for link in REFERENCE_LINKS]
                       for body in self.bodies}
         robots = set(self.robots)
+        # A gripper's finger links, as the (body, link) pairs a contact names.
+        fingers_of: dict[tuple[str, tuple[str, ...]], set[tuple[str, str]]] = {}
         for i, sample in enumerate(self.samples):
             touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
             # obj -> {(body, link): the contact normal, pointing from that link into obj}
             normals: dict[str, dict[tuple[str, str], Any]] = defaultdict(dict)
             held: set[str] = set()
             for body_a, link_a, body_b, link_b, force, normal in sample.contacts:
-                normal_z = normal[2]
-                if force < self.settings.contact_force_min or body_a == body_b:
+                if force < force_min or body_a == body_b:
                     continue
-                self._booleans[('contact', tuple(sorted((body_a, body_b))))][i] = True
+                normal_z = normal[2]
+                booleans[('contact', (body_a, body_b) if body_a <= body_b
+                          else (body_b, body_a))][i] = True
                 touching[body_a].add((body_b, link_b))
                 touching[body_b].add((body_a, link_a))
                 normals[body_a][(body_b, link_b)] = normal
-                normals[body_b][(body_a, link_a)] = tuple(-n for n in normal)
-                self._touching[body_a][i] = self._touching[body_b][i] = True
-                for robot, link, obj in ((body_a, link_a, body_b), (body_b, link_b, body_a)):
-                    if robot in robots and link:   # the base ('') may rest on its mount
-                        self._robot_touching[(robot, obj)][i] = True
-                for obj, support, up in ((body_a, body_b, normal_z),
-                                         (body_b, body_a, -normal_z)):
-                    if support not in self.grippers and up >= cos_support:
-                        key = ('supported_by', (obj, support))
-                        if key not in booleans:   # in the order they are first seen
-                            supports.append(key)
-                        booleans[key][i] = True
+                normals[body_b][(body_a, link_a)] = (-normal[0], -normal[1], -normal[2])
+                any_touching[body_a][i] = any_touching[body_b][i] = True
+                # the base ('') may rest on its mount
+                if link_a and body_a in robots:
+                    robot_touching[(body_a, body_b)][i] = True
+                if link_b and body_b in robots:
+                    robot_touching[(body_b, body_a)][i] = True
+                if body_b not in grippers and normal_z >= cos_support:
+                    key = ('supported_by', (body_a, body_b))
+                    if key not in booleans:   # in the order they are first seen
+                        supports.append(key)
+                    booleans[key][i] = True
+                if body_a not in grippers and -normal_z >= cos_support:
+                    key = ('supported_by', (body_b, body_a))
+                    if key not in booleans:
+                        supports.append(key)
+                    booleans[key][i] = True
             for name, gripper in sample.grippers.items():
-                fingers = {(name, link) for link in gripper.finger_links}
-                for obj, links in touching.items():
-                    if fingers and fingers <= links and _opposed(
+                links = tuple(gripper.finger_links)
+                fingers = fingers_of.get((name, links))
+                if fingers is None:
+                    fingers = fingers_of[(name, links)] = {(name, link) for link in links}
+                for obj, touched in touching.items():
+                    if fingers and fingers <= touched and _opposed(
                             [normals[obj][f] for f in fingers]):
                         held.add(obj)
-                        self._booleans[('in_gripper', (obj,))][i] = True
-                        self._held[(name, obj)][i] = True
+                        booleans[('in_gripper', (obj,))][i] = True
+                        gripper_held[(name, obj)][i] = True
             for key in supports:
                 if booleans[key][i] and key[1][0] not in held:
                     booleans[('on', key[1])][i] = True
             for name, state in sample.objects.items():
                 if state.broken:
-                    self._booleans[('broken', (name,))][i] = True
+                    booleans[('broken', (name,))][i] = True
             for body in self.bodies:
                 if _upside_down(sample, body, references[body]):
-                    self._booleans[('upside_down', (body,))][i] = True
+                    booleans[('upside_down', (body,))][i] = True
 
     def fluents(self) -> list[list[Any]]:
         """The fluents' intervals ``[name, args, start, end]``, by start, name and args."""
@@ -202,8 +220,10 @@ class Rules:
         onset = sink_onset = start
         shift = sunk = None
         sink = 0.0
-        for sample in self.samples:
-            if sample.t < start or sample.t > end or self._broken_at(obj, sample.t):
+        broken = self.intervals('broken', obj)
+        first, last = bisect.bisect_left(self.times, start), bisect.bisect_right(self.times, end)
+        for sample in self.samples[first:last]:
+            if broken and holds_at(broken, sample.t):
                 continue
             relative = self._relative_pose(obj, sample)
             if relative is None:
@@ -350,9 +370,11 @@ class Rules:
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Pose of ``obj`` in the frame between the fingers of the gripper holding it, and
         that frame's rotation in the world."""
+        if obj not in sample.poses:
+            return None
         for name, gripper in sample.grippers.items():
-            frames = [sample.poses.get(f'{name}/{link}') for link in gripper.finger_links]
-            if obj not in sample.poses or not frames or any(f is None for f in frames):
+            frames = [sample.poses.get(frame) for frame in _finger_frames(name, gripper)]
+            if not frames or None in frames:
                 continue
             origin = sum(f[0] for f in frames) / len(frames)
             rot = frames[0][1]
@@ -361,8 +383,29 @@ class Rules:
         return None
 
 
+@functools.lru_cache(maxsize=64)
+def _frame_names(name: str, links: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(f'{name}/{link}' for link in links)
+
+
+def _finger_frames(name: str, gripper: Any) -> tuple[str, ...]:
+    """The frames of the finger links of gripper ``name``."""
+    return _frame_names(name, tuple(gripper.finger_links))
+
+
 def _opposed(normals: list[Any]) -> bool:
     """Whether contact normals (one per finger, unit vectors) squeeze from opposite sides:
     their mean is short (two opposite fingers: about 0; fingers side by side pushing: 1)."""
+    # The mean as np.mean makes it (the rows summed in order, then divided), in plain
+    # floats. Its squared length differs from np.linalg.norm's (BLAS) by a few ulps at most:
+    # only within a millionth of the threshold is numpy asked.
+    n = len(normals)
+    x = y = z = 0.0
+    for normal in normals:
+        x, y, z = x + float(normal[0]), y + float(normal[1]), z + float(normal[2])
+    x, y, z = x / n, y / n, z / n
+    squared = x * x + y * y + z * z
+    if abs(squared - OPPOSED * OPPOSED) > 1e-6:
+        return squared < OPPOSED * OPPOSED
     mean = np.mean(np.asarray(normals, dtype=float), axis=0)
     return float(np.linalg.norm(mean)) < OPPOSED

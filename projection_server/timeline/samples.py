@@ -104,9 +104,12 @@ class Samples:
             sample = self.by_time[t_ns] = Sample(t_ns / 1e9)
         if kind == 'tf':
             sample.poses.add(data)
-            sample.moving.update(child for _, child, _, _ in data if '/' not in child)
-            sample.robots.update(parent.split('/')[0] for parent, child, _, _ in data
-                                 if '/' in child and parent != 'world')
+            moving, robots = sample.moving, sample.robots
+            for parent, child, _, _ in data:
+                if '/' not in child:
+                    moving.add(child)
+                elif parent != 'world':
+                    robots.add(parent.split('/', 1)[0])
         elif kind == 'contacts':
             sample.contacts = data
         elif kind == 'gripper':
@@ -180,8 +183,9 @@ class Poses:
         """The frames of one tf message."""
         transforms = list(transforms)
         entries: dict[str, list[Any]] = {}
+        get = entries.get
         for parent, child, position, quaternion in transforms:
-            entries[child] = [entries.get(parent), position, quaternion, None]
+            entries[child] = [get(parent), position, quaternion, None]
         self._frames.update(entries)
         self.messages.append(transforms)
 
@@ -208,6 +212,10 @@ class Poses:
         if entry[0] is None and entry[2] is not None:
             return tuple(float(v) for v in entry[2])
         return quaternion_of(_composed(entry)[1])
+
+    def names(self) -> Iterator[str]:
+        """Every frame's name, in the order of :meth:`items` (none composed)."""
+        return iter(self._frames)
 
     def items(self) -> Iterator[tuple[str, tuple[np.ndarray, np.ndarray]]]:
         """Every frame's name and pose."""
