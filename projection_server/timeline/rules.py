@@ -234,10 +234,11 @@ class Rules:
                     onset = sink_onset = sample.t
                 continue
             moved = relative[0] - reference[0]
-            cos_angle = (np.trace(reference[1].T @ relative[1]) - 1.0) / 2.0
+            cos_angle = ((reference[1].T @ relative[1]).trace() - 1.0) / 2.0
             angle = math.acos(min(1.0, max(-1.0, cos_angle)))
-            # Relative to the thresholds: 1 means moved; below 1/5 the grip still holds.
-            ratio = max(float(np.linalg.norm(moved)) / limit, angle / self.settings.slip_angle)
+            # Relative to the thresholds: 1 means moved; below 1/5 the grip still holds. The
+            # length is np.linalg.norm's own sqrt of the dot product, without its checks.
+            ratio = max(math.sqrt(moved.dot(moved)) / limit, angle / self.settings.slip_angle)
             if shift is None:
                 if ratio > 1.0:
                     shift = ['shift', [obj], onset, sample.t]

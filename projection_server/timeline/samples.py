@@ -74,6 +74,10 @@ class Sample:
     bonds: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> pairs in force (m, 2)
 
 
+# The kinds of records that make no sample of their own.
+_SAMPLELESS = frozenset({'info', 'tf_static', 'particles', 'batter', 'bonds'})
+
+
 class Samples:
     """Collects the monitoring samples of a projection, one record at a time."""
 
@@ -87,17 +91,13 @@ class Samples:
 
     def add(self, kind: str, t_ns: int, data: Any) -> None:
         """One record's ``kind``, time [ns] and ``data``."""
-        if kind == 'info':
-            self.info = data
-            return
-        if kind == 'tf_static':
-            self.static.update(_poses(data))
-            return
-        if kind == 'particles':   # they make no sample of their own
-            self.particles.setdefault(t_ns, {}).update(data)
-            return
-        if kind in ('batter', 'bonds'):   # nor do these
-            getattr(self, kind).setdefault(t_ns, {}).update(data)
+        if kind in _SAMPLELESS:
+            if kind == 'info':
+                self.info = data
+            elif kind == 'tf_static':
+                self.static.update(_poses(data))
+            else:   # particles, batter, bonds: they make no sample of their own
+                getattr(self, kind).setdefault(t_ns, {}).update(data)
             return
         sample = self.by_time.get(t_ns)
         if sample is None:
