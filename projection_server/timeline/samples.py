@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass, field
+from itertools import chain
 from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
@@ -229,14 +230,19 @@ def _compose_all(samples: list[Poses]) -> None:
     layouts: dict[tuple[tuple[str, str], ...], list[Poses]] = defaultdict(list)
     for poses in samples:
         if len(poses.messages) == 1:
-            layouts[tuple((parent, child) for parent, child, _, _ in poses.messages[0])
+            layouts[tuple([(parent, child) for parent, child, _, _ in poses.messages[0]])
                     ].append(poses)
     for layout, group in layouts.items():
         if len(group) < 2:
             continue
         messages = [poses.messages[0] for poses in group]
-        positions = np.array([[frame[2] for frame in m] for m in messages], dtype=float)
-        quaternions = np.array([[frame[3] for frame in m] for m in messages], dtype=float)
+        # The same doubles as np.array of the nested lists, without numpy's walk of them.
+        n, k = len(messages), len(layout)
+        positions = np.fromiter(chain.from_iterable([frame[2] for m in messages for frame in m]),
+                                float, count=n * k * 3).reshape(n, k, 3)
+        quaternions = np.fromiter(
+            chain.from_iterable([frame[3] for m in messages for frame in m]),
+            float, count=n * k * 4).reshape(n, k, 4)
         composed: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for k, (parent_frame, child) in enumerate(layout):
             position = np.ascontiguousarray(positions[:, k])
