@@ -216,40 +216,53 @@ class Rules:
     def _grip(self, obj: str, start: float, end: float) -> list[list[Any]]:
         """The ``shift`` or ``slip`` of ``obj`` in its grasp from ``start`` to ``end``."""
         limit = self.settings.slip_distance
-        reference = None
         onset = sink_onset = start
         shift = sunk = None
         sink = 0.0
         broken = self.intervals('broken', obj)
+        # The motion is measured from the first sample held and not broken once the grip
+        # has settled (the reference), to each such sample after it.
+        settled = min(start + self.settings.grasp_settle, end)
         first, last = bisect.bisect_left(self.times, start), bisect.bisect_right(self.times, end)
+        times, grips = [], []
         for sample in self.samples[first:last]:
-            if broken and holds_at(broken, sample.t):
+            if sample.t < settled or broken and holds_at(broken, sample.t):
                 continue
-            relative = self._relative_pose(obj, sample)
-            if relative is None:
-                continue
-            if reference is None:
-                if sample.t >= min(start + self.settings.grasp_settle, end):
-                    reference = relative
-                    onset = sink_onset = sample.t
-                continue
-            moved = relative[0] - reference[0]
-            cos_angle = ((reference[1].T @ relative[1]).trace() - 1.0) / 2.0
-            angle = math.acos(min(1.0, max(-1.0, cos_angle)))
-            # Relative to the thresholds: 1 means moved; below 1/5 the grip still holds. The
-            # length is np.linalg.norm's own sqrt of the dot product, without its checks.
-            ratio = max(math.sqrt(moved.dot(moved)) / limit, angle / self.settings.slip_angle)
-            if shift is None:
-                if ratio > 1.0:
-                    shift = ['shift', [obj], onset, sample.t]
-                elif ratio <= 0.2:
-                    onset = sample.t
-            sink = -float((relative[2] @ moved)[2])   # downwards in the world
-            if sunk is None:
-                if sink > limit:
-                    sunk = (sink_onset, sample.t)
-                elif sink <= 0.2 * limit:
-                    sink_onset = sample.t
+            grip = self._fingers_pose(obj, sample)
+            if grip is not None:
+                times.append(sample.t)
+                grips.append(grip)
+        if grips:
+            onset = sink_onset = times[0]
+        if len(grips) > 1:
+            # Each sample's pose relative to the fingers, for all at once: numpy's matrix
+            # products of a stack are those of each matrix, so the numbers are those of one
+            # sample at a time.
+            rotations = np.array([grip[0] for grip in grips])
+            inverses = rotations.transpose(0, 2, 1)
+            offsets = np.array([grip[1] for grip in grips])
+            positions = np.matmul(inverses, offsets[:, :, None])[:, :, 0]
+            turned = np.matmul(inverses, np.array([grip[2] for grip in grips]))
+            moves = positions[1:] - positions[0]
+            products = np.matmul(turned[0].T[None], turned[1:])
+            sinks = (-np.matmul(rotations[1:], moves[:, :, None])[:, 2, 0]).tolist()
+            for t, moved, product, sink in zip(times[1:], moves, products, sinks):
+                cos_angle = (product.trace() - 1.0) / 2.0
+                angle = math.acos(min(1.0, max(-1.0, cos_angle)))
+                # Relative to the thresholds: 1 means moved; below 1/5 the grip still
+                # holds. The length is np.linalg.norm's own: the sqrt of the dot product.
+                ratio = max(math.sqrt(moved.dot(moved)) / limit,
+                            angle / self.settings.slip_angle)
+                if shift is None:
+                    if ratio > 1.0:
+                        shift = ['shift', [obj], onset, t]
+                    elif ratio <= 0.2:
+                        onset = t
+                if sunk is None:   # downwards in the world
+                    if sink > limit:
+                        sunk = (sink_onset, t)
+                    elif sink <= 0.2 * limit:
+                        sink_onset = t
         after = self._next_time(end)
         if after is not None and self._command_after(end) != 'open' \
                 and not self._broken_at(obj, after):
@@ -367,10 +380,10 @@ class Rules:
         pose = sample.poses.get(obj)
         return float(pose[0][2]) if pose is not None else math.nan
 
-    def _relative_pose(self, obj: str, sample: Sample
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Pose of ``obj`` in the frame between the fingers of the gripper holding it, and
-        that frame's rotation in the world."""
+    def _fingers_pose(self, obj: str, sample: Sample
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The rotation of the frame between the fingers of the gripper holding ``obj``, the
+        position of ``obj`` from that frame's origin and its rotation, in the world."""
         if obj not in sample.poses:
             return None
         for name, gripper in sample.grippers.items():
@@ -378,9 +391,8 @@ class Rules:
             if not frames or None in frames:
                 continue
             origin = sum(f[0] for f in frames) / len(frames)
-            rot = frames[0][1]
             position, orientation = sample.poses[obj]
-            return rot.T @ (position - origin), rot.T @ orientation, rot
+            return frames[0][1], position - origin, orientation
         return None
 
 
