@@ -237,12 +237,13 @@ def _compose_all(samples: list[Poses]) -> None:
             continue
         messages = [poses.messages[0] for poses in group]
         # The same doubles as np.array of the nested lists, without numpy's walk of them.
-        n, k = len(messages), len(layout)
-        positions = np.fromiter(chain.from_iterable([frame[2] for m in messages for frame in m]),
-                                float, count=n * k * 3).reshape(n, k, 3)
+        shape = (len(messages), len(layout))
+        positions = np.fromiter(
+            chain.from_iterable([frame[2] for m in messages for frame in m]),
+            float, count=shape[0] * shape[1] * 3).reshape(*shape, 3)
         quaternions = np.fromiter(
             chain.from_iterable([frame[3] for m in messages for frame in m]),
-            float, count=n * k * 4).reshape(n, k, 4)
+            float, count=shape[0] * shape[1] * 4).reshape(*shape, 4)
         composed: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for k, (parent_frame, child) in enumerate(layout):
             position = np.ascontiguousarray(positions[:, k])
