@@ -7,6 +7,7 @@ of them all.
 
 from __future__ import annotations
 
+import bisect
 from collections import defaultdict
 import functools
 import math
@@ -50,8 +51,10 @@ def _upside_down(sample: Sample, body: str, references: list[str]) -> bool:
     a, b = (sample.poses.get(name) for name in references)
     if a is None or b is None or body not in sample.poses:
         return False
-    positions = [pose[0] for name, pose in sample.poses.items()
-                 if name == body or name.startswith(body + '/')]
+    # Only the body's own frames are composed (a robot's link chain need not be).
+    prefix = body + '/'
+    positions = [sample.poses[name][0] for name in sample.poses.names()
+                 if name == body or name.startswith(prefix)]
     normal = turning.upper_normal(np.array(positions), sample.poses[body][0], a[0], b[0])
     return turning.is_upside_down(normal)
 
@@ -91,53 +94,68 @@ class Rules:
     # --- fluents ------------------------------------------------------------------------
     def _sample_fluents(self) -> None:
         cos_support = math.cos(self.settings.support_max_angle)
+        force_min = self.settings.contact_force_min
         booleans = self._booleans
+        any_touching, robot_touching, gripper_held = (self._touching, self._robot_touching,
+                                                      self._held)
+        grippers = set(self.grippers)
         supports: list[tuple[str, tuple[str, ...]]] = []   # the supported_by keys
         references = {body: [f'{body}/{link}' for link in REFERENCE_LINKS]
                       for body in self.bodies}
         robots = set(self.robots)
+        # A gripper's finger links, as the (body, link) pairs a contact names.
+        fingers_of: dict[tuple[str, tuple[str, ...]], set[tuple[str, str]]] = {}
         for i, sample in enumerate(self.samples):
             touching: dict[str, set[tuple[str, str]]] = defaultdict(set)   # obj -> (body, link)
             # obj -> {(body, link): the contact normal, pointing from that link into obj}
             normals: dict[str, dict[tuple[str, str], Any]] = defaultdict(dict)
             held: set[str] = set()
             for body_a, link_a, body_b, link_b, force, normal in sample.contacts:
-                normal_z = normal[2]
-                if force < self.settings.contact_force_min or body_a == body_b:
+                if force < force_min or body_a == body_b:
                     continue
-                self._booleans[('contact', tuple(sorted((body_a, body_b))))][i] = True
+                normal_z = normal[2]
+                booleans[('contact', (body_a, body_b) if body_a <= body_b
+                          else (body_b, body_a))][i] = True
                 touching[body_a].add((body_b, link_b))
                 touching[body_b].add((body_a, link_a))
                 normals[body_a][(body_b, link_b)] = normal
-                normals[body_b][(body_a, link_a)] = tuple(-n for n in normal)
-                self._touching[body_a][i] = self._touching[body_b][i] = True
-                for robot, link, obj in ((body_a, link_a, body_b), (body_b, link_b, body_a)):
-                    if robot in robots and link:   # the base ('') may rest on its mount
-                        self._robot_touching[(robot, obj)][i] = True
-                for obj, support, up in ((body_a, body_b, normal_z),
-                                         (body_b, body_a, -normal_z)):
-                    if support not in self.grippers and up >= cos_support:
-                        key = ('supported_by', (obj, support))
-                        if key not in booleans:   # in the order they are first seen
-                            supports.append(key)
-                        booleans[key][i] = True
+                normals[body_b][(body_a, link_a)] = (-normal[0], -normal[1], -normal[2])
+                any_touching[body_a][i] = any_touching[body_b][i] = True
+                # the base ('') may rest on its mount
+                if link_a and body_a in robots:
+                    robot_touching[(body_a, body_b)][i] = True
+                if link_b and body_b in robots:
+                    robot_touching[(body_b, body_a)][i] = True
+                if body_b not in grippers and normal_z >= cos_support:
+                    key = ('supported_by', (body_a, body_b))
+                    if key not in booleans:   # in the order they are first seen
+                        supports.append(key)
+                    booleans[key][i] = True
+                if body_a not in grippers and -normal_z >= cos_support:
+                    key = ('supported_by', (body_b, body_a))
+                    if key not in booleans:
+                        supports.append(key)
+                    booleans[key][i] = True
             for name, gripper in sample.grippers.items():
-                fingers = {(name, link) for link in gripper.finger_links}
-                for obj, links in touching.items():
-                    if fingers and fingers <= links and _opposed(
+                links = tuple(gripper.finger_links)
+                fingers = fingers_of.get((name, links))
+                if fingers is None:
+                    fingers = fingers_of[(name, links)] = {(name, link) for link in links}
+                for obj, touched in touching.items():
+                    if fingers and fingers <= touched and _opposed(
                             [normals[obj][f] for f in fingers]):
                         held.add(obj)
-                        self._booleans[('in_gripper', (obj,))][i] = True
-                        self._held[(name, obj)][i] = True
+                        booleans[('in_gripper', (obj,))][i] = True
+                        gripper_held[(name, obj)][i] = True
             for key in supports:
                 if booleans[key][i] and key[1][0] not in held:
                     booleans[('on', key[1])][i] = True
             for name, state in sample.objects.items():
                 if state.broken:
-                    self._booleans[('broken', (name,))][i] = True
+                    booleans[('broken', (name,))][i] = True
             for body in self.bodies:
                 if _upside_down(sample, body, references[body]):
-                    self._booleans[('upside_down', (body,))][i] = True
+                    booleans[('upside_down', (body,))][i] = True
 
     def fluents(self) -> list[list[Any]]:
         """The fluents' intervals ``[name, args, start, end]``, by start, name and args."""
@@ -198,37 +216,53 @@ class Rules:
     def _grip(self, obj: str, start: float, end: float) -> list[list[Any]]:
         """The ``shift`` or ``slip`` of ``obj`` in its grasp from ``start`` to ``end``."""
         limit = self.settings.slip_distance
-        reference = None
         onset = sink_onset = start
         shift = sunk = None
         sink = 0.0
-        for sample in self.samples:
-            if sample.t < start or sample.t > end or self._broken_at(obj, sample.t):
+        broken = self.intervals('broken', obj)
+        # The motion is measured from the first sample held and not broken once the grip
+        # has settled (the reference), to each such sample after it.
+        settled = min(start + self.settings.grasp_settle, end)
+        first, last = bisect.bisect_left(self.times, start), bisect.bisect_right(self.times, end)
+        times, grips = [], []
+        for sample in self.samples[first:last]:
+            if sample.t < settled or broken and holds_at(broken, sample.t):
                 continue
-            relative = self._relative_pose(obj, sample)
-            if relative is None:
-                continue
-            if reference is None:
-                if sample.t >= min(start + self.settings.grasp_settle, end):
-                    reference = relative
-                    onset = sink_onset = sample.t
-                continue
-            moved = relative[0] - reference[0]
-            cos_angle = (np.trace(reference[1].T @ relative[1]) - 1.0) / 2.0
-            angle = math.acos(min(1.0, max(-1.0, cos_angle)))
-            # Relative to the thresholds: 1 means moved; below 1/5 the grip still holds.
-            ratio = max(float(np.linalg.norm(moved)) / limit, angle / self.settings.slip_angle)
-            if shift is None:
-                if ratio > 1.0:
-                    shift = ['shift', [obj], onset, sample.t]
-                elif ratio <= 0.2:
-                    onset = sample.t
-            sink = -float((relative[2] @ moved)[2])   # downwards in the world
-            if sunk is None:
-                if sink > limit:
-                    sunk = (sink_onset, sample.t)
-                elif sink <= 0.2 * limit:
-                    sink_onset = sample.t
+            grip = self._fingers_pose(obj, sample)
+            if grip is not None:
+                times.append(sample.t)
+                grips.append(grip)
+        if grips:
+            onset = sink_onset = times[0]
+        if len(grips) > 1:
+            # Each sample's pose relative to the fingers, for all at once: numpy's matrix
+            # products of a stack are those of each matrix, so the numbers are those of one
+            # sample at a time.
+            rotations = np.array([grip[0] for grip in grips])
+            inverses = rotations.transpose(0, 2, 1)
+            offsets = np.array([grip[1] for grip in grips])
+            positions = np.matmul(inverses, offsets[:, :, None])[:, :, 0]
+            turned = np.matmul(inverses, np.array([grip[2] for grip in grips]))
+            moves = positions[1:] - positions[0]
+            products = np.matmul(turned[0].T[None], turned[1:])
+            sinks = (-np.matmul(rotations[1:], moves[:, :, None])[:, 2, 0]).tolist()
+            for t, moved, product, sink in zip(times[1:], moves, products, sinks):
+                cos_angle = (product.trace() - 1.0) / 2.0
+                angle = math.acos(min(1.0, max(-1.0, cos_angle)))
+                # Relative to the thresholds: 1 means moved; below 1/5 the grip still
+                # holds. The length is np.linalg.norm's own: the sqrt of the dot product.
+                ratio = max(math.sqrt(moved.dot(moved)) / limit,
+                            angle / self.settings.slip_angle)
+                if shift is None:
+                    if ratio > 1.0:
+                        shift = ['shift', [obj], onset, t]
+                    elif ratio <= 0.2:
+                        onset = t
+                if sunk is None:   # downwards in the world
+                    if sink > limit:
+                        sunk = (sink_onset, t)
+                    elif sink <= 0.2 * limit:
+                        sink_onset = t
         after = self._next_time(end)
         if after is not None and self._command_after(end) != 'open' \
                 and not self._broken_at(obj, after):
@@ -346,23 +380,45 @@ class Rules:
         pose = sample.poses.get(obj)
         return float(pose[0][2]) if pose is not None else math.nan
 
-    def _relative_pose(self, obj: str, sample: Sample
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Pose of ``obj`` in the frame between the fingers of the gripper holding it, and
-        that frame's rotation in the world."""
+    def _fingers_pose(self, obj: str, sample: Sample
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The rotation of the frame between the fingers of the gripper holding ``obj``, the
+        position of ``obj`` from that frame's origin and its rotation, in the world."""
+        if obj not in sample.poses:
+            return None
         for name, gripper in sample.grippers.items():
-            frames = [sample.poses.get(f'{name}/{link}') for link in gripper.finger_links]
-            if obj not in sample.poses or not frames or any(f is None for f in frames):
+            frames = [sample.poses.get(frame) for frame in _finger_frames(name, gripper)]
+            if not frames or None in frames:
                 continue
             origin = sum(f[0] for f in frames) / len(frames)
-            rot = frames[0][1]
             position, orientation = sample.poses[obj]
-            return rot.T @ (position - origin), rot.T @ orientation, rot
+            return frames[0][1], position - origin, orientation
         return None
+
+
+@functools.lru_cache(maxsize=64)
+def _frame_names(name: str, links: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(f'{name}/{link}' for link in links)
+
+
+def _finger_frames(name: str, gripper: Any) -> tuple[str, ...]:
+    """The frames of the finger links of gripper ``name``."""
+    return _frame_names(name, tuple(gripper.finger_links))
 
 
 def _opposed(normals: list[Any]) -> bool:
     """Whether contact normals (one per finger, unit vectors) squeeze from opposite sides:
     their mean is short (two opposite fingers: about 0; fingers side by side pushing: 1)."""
+    # The mean as np.mean makes it (the rows summed in order, then divided), in plain
+    # floats. Its squared length differs from np.linalg.norm's (BLAS) by a few ulps at most:
+    # only within a millionth of the threshold is numpy asked.
+    n = len(normals)
+    x = y = z = 0.0
+    for normal in normals:
+        x, y, z = x + float(normal[0]), y + float(normal[1]), z + float(normal[2])
+    x, y, z = x / n, y / n, z / n
+    squared = x * x + y * y + z * z
+    if abs(squared - OPPOSED * OPPOSED) > 1e-6:
+        return squared < OPPOSED * OPPOSED
     mean = np.mean(np.asarray(normals, dtype=float), axis=0)
     return float(np.linalg.norm(mean)) < OPPOSED

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass, field
+from itertools import chain
 from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
@@ -74,6 +75,10 @@ class Sample:
     bonds: dict[str, np.ndarray] = field(default_factory=dict)   # fluid -> pairs in force (m, 2)
 
 
+# The kinds of records that make no sample of their own.
+_SAMPLELESS = frozenset({'info', 'tf_static', 'particles', 'batter', 'bonds'})
+
+
 class Samples:
     """Collects the monitoring samples of a projection, one record at a time."""
 
@@ -87,26 +92,25 @@ class Samples:
 
     def add(self, kind: str, t_ns: int, data: Any) -> None:
         """One record's ``kind``, time [ns] and ``data``."""
-        if kind == 'info':
-            self.info = data
-            return
-        if kind == 'tf_static':
-            self.static.update(_poses(data))
-            return
-        if kind == 'particles':   # they make no sample of their own
-            self.particles.setdefault(t_ns, {}).update(data)
-            return
-        if kind in ('batter', 'bonds'):   # nor do these
-            getattr(self, kind).setdefault(t_ns, {}).update(data)
+        if kind in _SAMPLELESS:
+            if kind == 'info':
+                self.info = data
+            elif kind == 'tf_static':
+                self.static.update(_poses(data))
+            else:   # particles, batter, bonds: they make no sample of their own
+                getattr(self, kind).setdefault(t_ns, {}).update(data)
             return
         sample = self.by_time.get(t_ns)
         if sample is None:
             sample = self.by_time[t_ns] = Sample(t_ns / 1e9)
         if kind == 'tf':
             sample.poses.add(data)
-            sample.moving.update(child for _, child, _, _ in data if '/' not in child)
-            sample.robots.update(parent.split('/')[0] for parent, child, _, _ in data
-                                 if '/' in child and parent != 'world')
+            moving, robots = sample.moving, sample.robots
+            for parent, child, _, _ in data:
+                if '/' not in child:
+                    moving.add(child)
+                elif parent != 'world':
+                    robots.add(parent.split('/', 1)[0])
         elif kind == 'contacts':
             sample.contacts = data
         elif kind == 'gripper':
@@ -180,8 +184,9 @@ class Poses:
         """The frames of one tf message."""
         transforms = list(transforms)
         entries: dict[str, list[Any]] = {}
+        get = entries.get
         for parent, child, position, quaternion in transforms:
-            entries[child] = [entries.get(parent), position, quaternion, None]
+            entries[child] = [get(parent), position, quaternion, None]
         self._frames.update(entries)
         self.messages.append(transforms)
 
@@ -209,6 +214,10 @@ class Poses:
             return tuple(float(v) for v in entry[2])
         return quaternion_of(_composed(entry)[1])
 
+    def names(self) -> Iterator[str]:
+        """Every frame's name, in the order of :meth:`items` (none composed)."""
+        return iter(self._frames)
+
     def items(self) -> Iterator[tuple[str, tuple[np.ndarray, np.ndarray]]]:
         """Every frame's name and pose."""
         return ((name, _composed(entry)) for name, entry in self._frames.items())
@@ -221,14 +230,20 @@ def _compose_all(samples: list[Poses]) -> None:
     layouts: dict[tuple[tuple[str, str], ...], list[Poses]] = defaultdict(list)
     for poses in samples:
         if len(poses.messages) == 1:
-            layouts[tuple((parent, child) for parent, child, _, _ in poses.messages[0])
+            layouts[tuple([(parent, child) for parent, child, _, _ in poses.messages[0]])
                     ].append(poses)
     for layout, group in layouts.items():
         if len(group) < 2:
             continue
         messages = [poses.messages[0] for poses in group]
-        positions = np.array([[frame[2] for frame in m] for m in messages], dtype=float)
-        quaternions = np.array([[frame[3] for frame in m] for m in messages], dtype=float)
+        # The same doubles as np.array of the nested lists, without numpy's walk of them.
+        shape = (len(messages), len(layout))
+        positions = np.fromiter(
+            chain.from_iterable([frame[2] for m in messages for frame in m]),
+            float, count=shape[0] * shape[1] * 3).reshape(*shape, 3)
+        quaternions = np.fromiter(
+            chain.from_iterable([frame[3] for m in messages for frame in m]),
+            float, count=shape[0] * shape[1] * 4).reshape(*shape, 4)
         composed: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for k, (parent_frame, child) in enumerate(layout):
             position = np.ascontiguousarray(positions[:, k])

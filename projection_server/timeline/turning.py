@@ -23,7 +23,11 @@ def upper_normal(positions: np.ndarray, centre: np.ndarray, ref_a: np.ndarray,
     points = np.asarray(positions, dtype=float).reshape(-1, 3)
     _, _, vt = np.linalg.svd(points - points.mean(axis=0))
     normal = vt[-1]
-    reference = np.cross(np.asarray(ref_a) - centre, np.asarray(ref_b) - centre)
+    # np.cross's products and differences in plain floats (the same numbers, without its
+    # per-call overhead on 3-vectors).
+    ax, ay, az = (float(a - c) for a, c in zip(ref_a, centre))
+    bx, by, bz = (float(b - c) for b, c in zip(ref_b, centre))
+    reference = np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
     return -normal if normal @ reference < 0 else normal
 
 
