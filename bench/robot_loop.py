@@ -36,6 +36,9 @@ choice holds down to about its lowest friction. Reported: the undesired
 outcomes per policy with their Wilson 95 % interval; the exact McNemar test of (c) against
 (b) on the paired eggs; per trial the seconds to sense (``robot_world/2`` inside its
 query), to decide (the query's wall time less sensing) and to act (the action's).
+
+The trials of the run in bench/RESULTS.md are in ``bench/data/robot_loop_trials.json``:
+``--report bench/data/robot_loop_trials.json`` prints its figures again.
 """
 
 from __future__ import annotations
@@ -238,7 +241,7 @@ def report(trials: list[dict[str, Any]]) -> None:
     only_b = sum(t['b']['undesired'] and not t['c']['undesired'] for t in trials)
     only_c = sum(t['c']['undesired'] and not t['b']['undesired'] for t in trials)
     print(f'\nexact McNemar, (c) against (b): {only_b} eggs lost by (b) alone, {only_c} by '
-          f'(c) alone, p = {mcnemar(only_b, only_c):.4f}')
+          f'(c) alone, p = {mcnemar(only_b, only_c):.2g}')
 
 
 if __name__ == '__main__':
