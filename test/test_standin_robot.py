@@ -3,8 +3,9 @@
 The node runs in its own process (as the projection server does in conftest.py); a plain
 rclpy node subscribes to its topics and calls its action and service, and the projection
 server reads its world with robot_world/2. Two plans run in its world (a grasp and a
-crush) and one is cancelled at its first step, one projection in the server's; the rest
-costs no simulation.
+crush) and one is cancelled at its first step, one projection in the server's; a short loop
+of three eggs (bench/robot_loop.py's in small) makes nine projections and three grasps more;
+the rest costs no simulation.
 """
 
 from __future__ import annotations
@@ -304,3 +305,40 @@ def test_the_docs_examples_of_the_stand_in_do_what_their_page_says(standin, prob
             events = [e.split('@')[0] for e in result.events]
             assert result.ok and 'grasp(egg1)' in events and 'lift(egg1)' in events, result
             assert len(feedback) == 6
+
+
+def test_a_short_loop_senses_decides_acts_and_records_each_egg(standin, probe, call):
+    """bench/robot_loop.py's loop in small, on three eggs: read the robot's world, choose
+    the gentlest force that the projection says lifts the egg whole, execute it on the
+    stand-in, record what its world did and how long each part took."""
+    from projection_interfaces.srv import PrologQuery
+    forces = [1, 5, 15]
+    query = ('get_time(T0), robot_world(S, [max_age(5), entities([kitchen_env, '
+             'entity(egg1, egg, _{frame: egg_1})])]), get_time(T1), Sense is T1 - T0, '
+             f'findall(F, ( make_projection(S, plan({GRASP.format(force="F")}), '
+             f'[(F, force, {forces})], TL), \\+ occurs(slip(egg1), _, TL), '
+             '\\+ occurs(break(egg1), _, TL) ), Fs)')
+    trials = []
+    for seed in (21, 22, 23):
+        truth = reset(probe, standin, seed)['object']['properties']
+        time.sleep(0.3)   # the new world's joint states and frames are out
+        started = time.monotonic()
+        r = call(PrologQuery, 'query', PrologQuery.Request(
+            mode=PrologQuery.Request.ONCE, query=query, timeout=120.0), timeout=180.0)
+        decided = time.monotonic() - started
+        assert r.ok, r.message
+        answer = json.loads(r.solutions[0])
+        assert answer['Fs'], f'egg {seed}: no force lifts it whole in the projection'
+        force = min(answer['Fs'])
+        result, _, _ = execute(probe, standin, GRASP.format(force=force))
+        assert result.ok, result.error
+        trials.append({'seed': seed, 'truth': truth, 'force': force,
+                       'events': list(result.events), 'sense': float(answer['Sense']),
+                       'decide': decided - float(answer['Sense']), 'act': result.duration})
+    for trial in trials:
+        # Every egg was met where perception put it, whatever its truth did after.
+        assert any(e.startswith('grasp(egg1)@') for e in trial['events']), trial
+        assert 0.0 <= trial['sense'] < 5.0 and trial['decide'] > 0.0, trial
+        assert trial['act'] >= 1.0, trial   # paced to real time: a grasp takes seconds
+    # Three eggs drawn anew: three worlds, not one.
+    assert len({round(t['truth']['friction'], 6) for t in trials}) == 3, trials
