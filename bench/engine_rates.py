@@ -2,6 +2,7 @@
 engine: whether the outcomes change with the step, and what a projection costs at each.
 
     tools/with_env.sh python bench/engine_rates.py [--engine mujoco] [--rates 240,120,60,480]
+        [--against pybullet]
 
 In this process, one projection at a time: ``grasp_object`` over bench/robust_choice.py's
 cells (forces 1-11 N x positions -0.02, 0, 0.02 m) in the knowledge base's egg and in six
@@ -10,7 +11,8 @@ worlds of the closed loop's belief (egg1's friction 0.2, 0.27, 0.34 x breaking f
 logging rates stay 60 Hz). Each outcome is read off the timeline (break, else slip, else
 ok). Printed: per rate, the cells whose outcome is the first rate's, and the median CPU
 milliseconds of a projection with its timeline (``Simulator.run`` and
-``translate_records``).
+``translate_records``). With ``--against ENGINE``, each cell also runs on that engine at the
+first rate, and the cells the two engines agree on are printed.
 """
 
 from __future__ import annotations
@@ -32,8 +34,12 @@ def main() -> int:
     parser = harness.arguments(__doc__)
     parser.add_argument('--engine', default='mujoco')
     parser.add_argument('--rates', default='240,120,60,480')
+    parser.add_argument('--against', default=None, help='a second engine, at the first rate')
     args = parser.parse_args()
     rates = [int(r) for r in args.rates.split(',')]
+    runs = [(args.engine, rate) for rate in rates]
+    if args.against:
+        runs.append((args.against, rates[0]))
 
     from projection_server.settings import load_settings
     from projection_server.simulation.job import Job
@@ -44,8 +50,8 @@ def main() -> int:
           f'{len(FORCES) * len(POSITIONS)} cells; {harness.machine()}', flush=True)
     settings = load_settings()
     simulator = Simulator()
-    outcomes: dict[int, list[str]] = {rate: [] for rate in rates}
-    cpu: dict[int, list[float]] = {rate: [] for rate in rates}
+    outcomes: dict[tuple[str, int], list[str]] = {run: [] for run in runs}
+    cpu: dict[tuple[str, int], list[float]] = {run: [] for run in runs}
     with tempfile.TemporaryDirectory() as tmp:
         count = 0
         for world in WORLDS:
@@ -54,28 +60,27 @@ def main() -> int:
                 harness.set_properties(scenario['entities'], {
                     'egg1.friction': world[0], 'egg1.breaking_force': world[1]})
             for force, position in itertools.product(FORCES, POSITIONS):
-                for rate in rates:
+                for engine, rate in runs:
                     job = Job.checked(scenario, 'grasp_object',
                                       {'force': float(force), 'position': position},
-                                      {'engine': args.engine, 'rate_hz': rate})
-                    start = time.process_time()
-                    projection = simulator.run(job, settings, Path(tmp) / f'{count}')
-                    timeline = translate_records(projection.monitor.records,
-                                                 Path(tmp) / f'{count}', projection.scenario)
-                    cpu[rate].append(time.process_time() - start)
+                                      {'engine': engine, 'rate_hz': rate})
+                    bag = Path(tmp) / f'{count}'
                     count += 1
-                    events = {event[0] for event in timeline['events']}
-                    outcomes[rate].append('break' if 'break' in events else
-                                          'slip' if 'slip' in events else 'ok')
+                    start = time.process_time()
+                    projection = simulator.run(job, settings, bag)
+                    timeline = translate_records(projection.monitor.records, bag,
+                                                 projection.scenario)
+                    cpu[(engine, rate)].append(time.process_time() - start)
+                    outcomes[(engine, rate)].append(harness.grasp_outcome(timeline))
             print(f'world {world or "kb"}: done', flush=True)
-    first = outcomes[rates[0]]
-    print(f'\n{"rate Hz":>8} {"same as " + str(rates[0]) + " Hz":>16} {"ms a projection":>16}'
-          f'   outcomes (ok/slip/break)')
-    for rate in rates:
-        same = sum(a == b for a, b in zip(outcomes[rate], first))
-        counts = '/'.join(str(outcomes[rate].count(o)) for o in ('ok', 'slip', 'break'))
-        print(f'{rate:>8} {f"{same}/{len(first)}":>16} '
-              f'{1e3 * statistics.median(cpu[rate]):>16.1f}   {counts}')
+    first = outcomes[runs[0]]
+    print(f'\n{"engine":>9} {"rate Hz":>8} {f"same as {runs[0][0]} {runs[0][1]} Hz":>22} '
+          f'{"ms a projection":>16}   outcomes (ok/slip/break)')
+    for run in runs:
+        same = sum(a == b for a, b in zip(outcomes[run], first))
+        counts = '/'.join(str(outcomes[run].count(o)) for o in ('ok', 'slip', 'break'))
+        print(f'{run[0]:>9} {run[1]:>8} {f"{same}/{len(first)}":>22} '
+              f'{1e3 * statistics.median(cpu[run]):>16.1f}   {counts}')
     print(f'# {harness.machine()}')
     return 0
 

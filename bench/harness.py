@@ -143,6 +143,13 @@ def set_properties(entities: list[dict[str, Any]], changes: dict[str, Any],
         find_entity(entities, entity or default)['properties'][prop] = value
 
 
+def grasp_outcome(timeline: dict[str, Any], target: str = 'egg1') -> str:
+    """A grasp's outcome off its timeline: ``break`` if ``target`` broke, else ``slip`` if
+    it slipped, else ``ok``."""
+    names = {event[0] for event in timeline['events'] if event[1] == [target]}
+    return 'break' if 'break' in names else 'slip' if 'slip' in names else 'ok'
+
+
 ERP_SETTINGS = ('erp', 'contact_erp', 'friction_erp')
 
 

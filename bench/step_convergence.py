@@ -50,8 +50,7 @@ def outcome(job: tuple) -> tuple[tuple, str, float]:
     if program == 'turn_pancake':
         result = 'ok' if any(f[0] == 'upside_down' for f in timeline['fluents']) else 'fail'
     else:
-        names = {e[0] for e in timeline['events'] if e[1] == ['egg1']}
-        result = 'break' if 'break' in names else 'slip' if 'slip' in names else 'ok'
+        result = harness.grasp_outcome(timeline)
     return (program, tuple(sorted(params.items())), factor), result, elapsed
 
 
