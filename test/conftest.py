@@ -101,6 +101,8 @@ def client(server):
 def call(server, node):
     """call(srv_type, 'query', request) -> response, straight over the service."""
     import rclpy
+
+    from projection_server.client.discovery import handshake
     clients = {}
     # Tests call from several threads at once; rclpy's executor may be spun by one thread
     # at a time ("generator already executing"), so they take turns in short slices, and
@@ -113,6 +115,7 @@ def call(server, node):
             if key not in clients:
                 clients[key] = node.create_client(srv_type, f'{server}/{service}')
                 assert clients[key].wait_for_service(timeout_sec=20.0)
+                assert handshake(node, server, 20.0), f'{server} did not discover {service}'
             future = clients[key].call_async(request)
         deadline = time.monotonic() + timeout
         while not future.done() and time.monotonic() < deadline:

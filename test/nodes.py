@@ -29,12 +29,15 @@ def caller(server: str, node: Any) -> Iterator[Callable[..., Any]]:
     ``server``'s services; its clients are destroyed on exit."""
     import rclpy
 
+    from projection_server.client.discovery import handshake
+
     clients: dict[str, Any] = {}
 
     def call(srv_type, service, request, timeout=30.0):
         if service not in clients:
             clients[service] = node.create_client(srv_type, f'{server}/{service}')
             assert clients[service].wait_for_service(timeout_sec=20.0)
+            assert handshake(node, server, 20.0), f'{server} did not discover {service}'
         future = clients[service].call_async(request)
         rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
         assert future.done(), f'no answer from {service}'

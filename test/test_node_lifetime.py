@@ -13,6 +13,8 @@ import time
 
 from projection_interfaces.srv import PrologQuery
 
+from projection_server.client.discovery import handshake
+
 SCRIPT = '''
 import sys, time
 from pathlib import Path
@@ -88,6 +90,7 @@ def test_a_scripts_node_and_its_workers_end_with_the_script(rclpy_context, node,
         client = node.create_client(
             PrologQuery, f'/lifetime_{sig.name.lower()}_{suffix}/query')
         assert client.wait_for_service(timeout_sec=20.0)
+        assert handshake(node, f'/lifetime_{sig.name.lower()}_{suffix}', 20.0)
         client.call_async(PrologQuery.Request(mode=PrologQuery.Request.ALL_SOLUTIONS,
                                               query=POURS, timeout=300.0))
         clients.append(client)

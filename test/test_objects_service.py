@@ -16,6 +16,8 @@ import time
 from projection_interfaces.srv import PrologQuery
 import pytest
 
+from projection_server.client.discovery import handshake
+
 Q = PrologQuery.Request
 NAME = 'objects_server'
 SIM_TIMEOUT = 120.0
@@ -88,7 +90,7 @@ def ask(objects_server, node):
     """``ask(text)`` -> (response, solutions): an ALL_SOLUTIONS query."""
     import rclpy
     client = node.create_client(PrologQuery, f'{objects_server}/query')
-    assert client.wait_for_service(timeout_sec=20.0)
+    assert client.wait_for_service(timeout_sec=20.0) and handshake(node, objects_server, 20.0)
 
     def send(text):
         future = client.call_async(Q(mode=Q.ALL_SOLUTIONS, query=text, timeout=SIM_TIMEOUT))

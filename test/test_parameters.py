@@ -13,6 +13,8 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
 import yaml
 
+from projection_server.client.discovery import handshake
+
 
 def test_numeric_parameters_describe_their_ranges(call):
     names = ['max_engines', 'default_timeout', 'max_solutions', 'idle_timeout',
@@ -56,6 +58,7 @@ def _request(node, srv_type, service, request):
     client = node.create_client(srv_type, service)
     try:
         assert client.wait_for_service(timeout_sec=20.0), service
+        assert handshake(node, service.rsplit('/', 1)[0], 20.0), service
         future = client.call_async(request)
         rclpy.spin_until_future_complete(node, future, timeout_sec=20.0)
         assert future.done(), service

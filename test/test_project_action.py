@@ -74,14 +74,43 @@ def test_a_cancelled_goal_stops_and_frees_its_engine(prolog):
     assert prolog.once('X = still_serving') == {'X': 'still_serving'}
 
 
+def test_a_goal_sent_again_under_its_id_is_refused_and_followed(prolog):
+    # The client sends a goal again when its acceptance does not come: the server refuses
+    # the copy, and the client follows the goal the server holds, which runs once.
+    import uuid
+
+    from action_msgs.msg import GoalStatus
+    from projection_interfaces.action import Project
+    from unique_identifier_msgs.msg import UUID
+
+    from projection_server.client.project_task import _held
+
+    assert prolog.project('X = 0').result(deadline=60.0) == [{'X': 0}]   # the action is up
+    action = prolog._action
+    goal = Project.Goal(mode=Project.Goal.ALL_SOLUTIONS, id='resent/1', timeout=30.0,
+                        query='sleep(2), X = 1')
+    goal_uuid = UUID(uuid=list(uuid.uuid4().bytes))
+    first = prolog.wait(action.send_goal_async(goal, goal_uuid=goal_uuid), 'a goal', 20.0)
+    copy = prolog.wait(action.send_goal_async(goal, goal_uuid=goal_uuid), 'its copy', 20.0)
+    assert first.accepted and not copy.accepted
+    time.sleep(0.5)
+    assert json.loads(_ping(prolog))['engines'] == 1   # the goal runs once
+    followed = _held(action, goal_uuid, copy)
+    result = prolog.wait(followed.get_result_async(), 'the result', 30.0)
+    assert result.status == GoalStatus.STATUS_SUCCEEDED
+    assert [json.loads(s) for s in result.result.solutions] == [{'X': 1}]
+
+
 def test_an_incremental_goal_ends_aborted_as_an_invalid_request(server, node):
     import rclpy
     from action_msgs.msg import GoalStatus
     from projection_interfaces.action import Project
     from rclpy.action import ActionClient
 
+    from projection_server.client.discovery import handshake
+
     client = ActionClient(node, Project, f'{server}/project')
-    assert client.wait_for_server(timeout_sec=20.0)
+    assert client.wait_for_server(timeout_sec=20.0) and handshake(node, server, 20.0)
     sent = client.send_goal_async(Project.Goal(mode=1, query='X = 1'))
     rclpy.spin_until_future_complete(node, sent, timeout_sec=30.0)
     done = sent.result().get_result_async()

@@ -19,6 +19,8 @@ import time
 from projection_interfaces.srv import PrologQuery
 import pytest
 
+from projection_server.client.discovery import handshake
+
 from projection_server.reproduce import paper
 
 Q = PrologQuery.Request
@@ -71,7 +73,7 @@ def ray_server(cluster, rclpy_context, tmp_path_factory):
 def ray_query(ray_server, node):
     import rclpy
     client = node.create_client(PrologQuery, f'{ray_server}/query')
-    assert client.wait_for_service(timeout_sec=20.0)
+    assert client.wait_for_service(timeout_sec=20.0) and handshake(node, ray_server, 20.0)
 
     def send(text, mode=Q.ALL_SOLUTIONS, timeout=SIM_TIMEOUT, query_id=''):
         return client.call_async(Q(mode=mode, id=query_id, query=text, timeout=timeout))
@@ -215,7 +217,7 @@ def test_finishing_a_projection_query_stops_its_running_ray_workers(
     future = ray_query(text, Q.ONCE, timeout=300.0, query_id='ray/cancel')
     busy = busy_actors(future)
     finish = node.create_client(PrologFinish, f'{ray_server}/finish')
-    assert finish.wait_for_service(timeout_sec=20.0)
+    assert finish.wait_for_service(timeout_sec=20.0) and handshake(node, ray_server, 20.0)
     closed = ray_query.wait(finish.call_async(PrologFinish.Request(id='ray/cancel')))
     assert closed.closed == 1
     r = ray_query.wait(future)

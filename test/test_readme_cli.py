@@ -161,6 +161,8 @@ DOCUMENTED = {
 def test_every_example_does_what_its_page_says(server, call, node):
     import rclpy
     from rclpy.action import ActionClient
+
+    from projection_server.client.discovery import handshake
     from projection_interfaces.action import Project
     from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQuery
 
@@ -177,7 +179,7 @@ def test_every_example_does_what_its_page_says(server, call, node):
             assert type_name == 'projection_interfaces/action/Project'
             goal = request_from_yaml(Project.Goal, text)
             client = ActionClient(node, Project, name)
-            assert client.wait_for_server(timeout_sec=20.0)
+            assert client.wait_for_server(timeout_sec=20.0) and handshake(node, server, 20.0)
             sent = client.send_goal_async(goal)
             rclpy.spin_until_future_complete(node, sent, timeout_sec=30.0)
             done = sent.result().get_result_async()

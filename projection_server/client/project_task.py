@@ -20,6 +20,7 @@ from projection_interfaces.action import Project
 from unique_identifier_msgs.msg import UUID
 
 from projection_server.client.bindings import decode_solution
+from projection_server.client.discovery import FIRST_RESEND, LAST_RESEND
 from projection_server.client.prolog_client import (PrologClientError, PrologDeadlineError,
                                                     PrologQueryError)
 
@@ -67,10 +68,7 @@ class ProjectTask:
         self._uuid = bytes(goal_uuid.uuid)
         client._track(self._uuid, self)
         try:
-            sent = action.send_goal_async(goal, goal_uuid=goal_uuid)
-            self._handle = client.wait(sent, 'the ~/project action')
-            if not self._handle.accepted:
-                raise PrologClientError('the ~/project action refused the goal')
+            self._handle = _send(action, goal, goal_uuid, client._service_timeout)
         except BaseException:
             client._track(self._uuid)
             raise
@@ -149,3 +147,39 @@ class ProjectTask:
         if not result.ok:
             raise PrologQueryError(result.error_kind, result.message, result.error)
         return [decode_solution(s) for s in result.solutions]
+
+
+def _send(action: ActionClient, goal: Any, goal_uuid: UUID, timeout: float) -> Any:
+    """The handle of ``goal``, once the server has accepted it, sent again while its
+    acceptance is not in: like any response, one can be lost (discovery.py). A goal sent
+    again under its id is refused as a duplicate while the server holds it, so a refusal
+    of a second sending means that an earlier one was accepted. (The server accepts every
+    goal: a bad one is answered with its result.)"""
+    answered = threading.Event()
+    end = time.monotonic() + timeout
+    period, sent = FIRST_RESEND, []
+    while True:
+        future = action.send_goal_async(goal, goal_uuid=goal_uuid)
+        future.add_done_callback(lambda _: answered.set())
+        sent.append(future)
+        answered.wait(max(0.0, min(period, end - time.monotonic())))
+        done = [f.result() for f in sent if f.done()]
+        if any(handle.accepted for handle in done):
+            return next(handle for handle in done if handle.accepted)
+        if done and len(sent) == 1:
+            raise PrologClientError('the ~/project action refused the goal')
+        if done:
+            return _held(action, goal_uuid, done[0])
+        if time.monotonic() >= end:
+            raise PrologClientError(f'no answer from the ~/project action within '
+                                    f'{timeout:g} s')
+        period = min(2 * period, LAST_RESEND)
+
+
+def _held(action: ActionClient, goal_uuid: UUID, refusal: Any) -> Any:
+    """A handle of the goal ``goal_uuid`` that the server holds, from the ``refusal`` of
+    a copy sent under its id."""
+    from rclpy.action.client import ClientGoalHandle
+
+    accepted = Project.Impl.SendGoalService.Response(accepted=True, stamp=refusal.stamp)
+    return ClientGoalHandle(action, goal_uuid, accepted)

@@ -38,6 +38,7 @@ from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import Trigger
 
 from projection_server.client.bindings import decode_solution
+from projection_server.client.discovery import handshake, request_resending
 
 __all__ = [
     'PrologClient',
@@ -97,6 +98,7 @@ class PrologClient:
         self._finish = self._node.create_client(PrologFinish, f'{self.server}/finish')
         self._ping = self._node.create_client(Trigger, f'{self.server}/ping')
         self._action = None
+        self._discovered = False   # the server has matched our clients (discovery.py)
         self._project_tasks: dict[bytes, Any] = {}   # goal uuid -> ProjectTask
         self._lock = threading.Lock()
         self.truncated = False  # the last all() was stopped at the solution cap
@@ -127,8 +129,9 @@ class PrologClient:
     def wait_for_server(self, timeout: float = 10.0) -> bool:
         """True once all the server's services are there, False after ``timeout`` s."""
         end = time.monotonic() + timeout
-        return all(c.wait_for_service(timeout_sec=max(0.0, end - time.monotonic()))
-                   for c in (self._query, self._next, self._finish, self._ping))
+        return (all(c.wait_for_service(timeout_sec=max(0.0, end - time.monotonic()))
+                    for c in (self._query, self._next, self._finish, self._ping))
+                and self._handshake(max(0.0, end - time.monotonic())))
 
     def once(self, query: str, *, timeout: float = 0.0,
              deadline: float | None = None) -> dict[str, Any] | None:
@@ -169,7 +172,9 @@ class PrologClient:
             self._node.create_subscription(
                 Project.Impl.FeedbackMessage, f'{self.server}/project/_action/feedback',
                 self._on_project_feedback, QoSProfile(depth=1000))
-            if not self._action.wait_for_server(timeout_sec=self._service_timeout):
+            if not (self._action.wait_for_server(timeout_sec=self._service_timeout)
+                    and handshake(self._node, self.server, self._service_timeout,
+                                  self._until_done)):
                 raise PrologClientError(f'action {self.server}/project is not available; '
                                         + server_hint(self.server))
         return ProjectTask(self, self._action, query, once=once, timeout=timeout,
@@ -200,10 +205,11 @@ class PrologClient:
 
     def ping(self) -> bool:
         """True when the server answers its ping within ``service_timeout`` seconds."""
-        try:
-            return self._call(self._ping, Trigger.Request()).success
-        except PrologClientError:
+        if not self._ping.wait_for_service(timeout_sec=self._service_timeout):
             return False
+        response = request_resending(self._ping, Trigger.Request(), self._service_timeout,
+                                     self._until_done)
+        return response is not None and response.success
 
     # -- internals ----------------------------------------------------------------
     def _new_id(self) -> str:
@@ -231,9 +237,24 @@ class PrologClient:
         except PrologClientError:
             pass
 
+    def _handshake(self, timeout: float) -> bool:
+        # The ping client is this node's last: its answer proves the server has matched
+        # the others (discovery.py). Once is enough; they live as long as the client.
+        if not self._discovered:
+            self._discovered = request_resending(self._ping, Trigger.Request(), timeout,
+                                                 self._until_done) is not None
+        return self._discovered
+
+    @staticmethod
+    def _until_done(future, seconds: float) -> bool:
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        return done.wait(seconds) or future.done()
+
     def _call(self, client, request, wait: float | None = 0.0,
               deadline: float | None = None):
-        if not client.wait_for_service(timeout_sec=self._service_timeout):
+        if not (client.wait_for_service(timeout_sec=self._service_timeout)
+                and self._handshake(self._service_timeout)):
             raise PrologClientError(f'service {client.srv_name} is not available after '
                                     f'{self._service_timeout:g} s; {server_hint(self.server)}')
         future = client.call_async(request)

@@ -13,6 +13,8 @@ from projection_interfaces.srv import PrologFinish, PrologNextSolution, PrologQu
 import pytest
 from std_srvs.srv import Trigger
 
+from projection_server.client.discovery import handshake
+
 Q = PrologQuery.Request
 N = PrologNextSolution.Response
 
@@ -126,6 +128,7 @@ def test_next_solution_racing_with_the_opening_of_its_query(call, node):
     q = node.create_client(PrologQuery, '/projection_server/query')
     n = node.create_client(PrologNextSolution, '/projection_server/next_solution')
     assert q.wait_for_service(timeout_sec=10) and n.wait_for_service(timeout_sec=10)
+    assert handshake(node, '/projection_server', 20.0)
     for i in range(5):
         qid = f'race/{i}'
         opened = q.call_async(Q(mode=Q.INCREMENTAL, id=qid, query='between(1, 3, X)'))
@@ -158,7 +161,7 @@ def test_an_abandoned_sleep_frees_its_engine_and_breaks_nothing(call):
 def test_sleeping_queries_do_not_lock_others_out(call, node):
     import rclpy
     q = node.create_client(PrologQuery, '/projection_server/query')
-    assert q.wait_for_service(timeout_sec=10)
+    assert q.wait_for_service(timeout_sec=10) and handshake(node, '/projection_server', 20.0)
     futures = [q.call_async(Q(mode=Q.ONCE, query='sleep(25)', timeout=1.0)) for _ in range(5)]
     for f in futures:
         rclpy.spin_until_future_complete(node, f, timeout_sec=20)
@@ -213,7 +216,7 @@ def test_a_query_cannot_change_what_later_queries_mean(call, poison):
 def test_finish_cancels_a_running_all_query(call, node):
     import rclpy
     q = node.create_client(PrologQuery, '/projection_server/query')
-    assert q.wait_for_service(timeout_sec=10)
+    assert q.wait_for_service(timeout_sec=10) and handshake(node, '/projection_server', 20.0)
     future = q.call_async(Q(mode=Q.ALL_SOLUTIONS, id='endless/1', query='repeat, fail',
                             timeout=30.0))
     time.sleep(1.0)
@@ -230,6 +233,7 @@ def test_finish_during_a_pending_next_solution_returns_it_at_once(call, node):
                        PrologNextSolution.Request(id='inc/c'))
     assert nxt().status == N.OK
     n = node.create_client(PrologNextSolution, '/projection_server/next_solution')
+    assert n.wait_for_service(timeout_sec=10) and handshake(node, '/projection_server', 20.0)
     pending = n.call_async(PrologNextSolution.Request(id='inc/c'))
     time.sleep(0.5)
     start = time.monotonic()
@@ -319,7 +323,7 @@ def test_memory_and_threads_come_back_after_a_burst(server, call):
 def test_finish_stops_a_running_projection_query(call, node):
     import rclpy
     q = node.create_client(PrologQuery, '/projection_server/query')
-    assert q.wait_for_service(timeout_sec=10)
+    assert q.wait_for_service(timeout_sec=10) and handshake(node, '/projection_server', 20.0)
     # 200 forces no other test simulates: nothing is cached, and however fast the machine,
     # the query is still projecting when it is finished.
     text = ('make_projection(grasping, grasp_object, '
