@@ -214,7 +214,7 @@ def _chance_push(sols):
 def _pour_spread(sols):
     (s,) = sols
     assert 150 <= s['N'] <= 200, s['N']          # "about 175"
-    assert 0.0065 <= s['Area'] <= 0.0075, s['Area']   # "about 70 cm^2"
+    assert 0.0062 <= s['Area'] <= 0.0072, s['Area']   # "65 to 70 cm^2"
 
 
 def _cook_and_turn(sols):
@@ -230,8 +230,10 @@ def _panda_render(sols):
 
 def _one_pour(sols):
     (s,) = sols
-    assert (s['On'], s['Spilled'], s['InCup']) == (177, 0, 123), s
-    assert round(s['Round'], 2) == 0.61, s
+    # "about 175 land on the pan, none is spilled and the rest stay in the cup" (the exact
+    # counts differ between CPUs: 177 on one kind, 171 on another)
+    assert 165 <= s['On'] <= 185 and s['Spilled'] == 0 and s['On'] + s['InCup'] == 300, s
+    assert 0.45 <= s['Round'] <= 0.65, s   # "0.5 to 0.6" (0.61 on one kind, 0.50 on another)
 
 
 def _table_three(sols):
