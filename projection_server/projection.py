@@ -299,8 +299,8 @@ def plan_problem(plan: list[Any], params: dict[str, Any]) -> list[str] | None:
     return None
 
 
-def prefetch_plan(program: str, params_list: list[dict[str, Any]],
-                  depth: int) -> list[list[int]]:
+def prefetch_plan(program: str, params_list: list[dict[str, Any]], depth: int,
+                  physics: Mapping[str, Any] | None = None) -> list[list[int]]:
     """Which of a query's parametrizations ``params_list`` (in the order it asks for them)
     to :func:`prefetch` when it comes to each: a list of indices per parametrization.
 
@@ -308,13 +308,22 @@ def prefetch_plan(program: str, params_list: list[dict[str, Any]],
     ``depth + 1`` families from ``i`` on, are queued, each family whole (the parametrizations
     that may share their first steps, :meth:`Job.family`; up to :data:`FAMILY_BATCH` at a
     time): a worker takes a family's projections together and steps what they share once.
-    A parametrization of a program that shares nothing is a family of its own, so its query
-    keeps ``depth`` projections queued ahead of the one it waits for.
+    A parametrization of a program that shares nothing (on the engine of ``physics``, the
+    query's physics options: :meth:`Job.family`) is a family of its own, so its query keeps
+    ``depth`` projections queued ahead of the one it waits for.
     """
     try:
         shared = _programs.get(program)
     except ProjectionError:
         shared = None
+    if shared is not None and not shared.forks:
+        from projection_server.simulation import engines
+        engine = ((physics or {}).get('engine') or _config['engine']
+                  or load_settings().physics.engine)
+        try:
+            shared = shared if engines.get(engine).copyable else None
+        except ProjectionError:   # an unknown engine: the projection reports it
+            shared = None
     if shared is None or shared.setup_params is None:
         count = len(params_list)
         return [list(range(min(count, depth + 1)))] * (count > 0) + [

@@ -1,13 +1,16 @@
 """Projections that part only after their set-up: the steps they share once, then a fork.
 
 Parametrizations of a program with ``setup_params`` that agree in them (pours from one
-position at several angles and times) step alike until their commands first differ.
-:func:`run_tree` runs them as a tree of processes: a process steps while the commands of
-all its parametrizations agree, then forks a child for each group whose commands for the
-next step agree, and each child goes on with its group's parameters (the task's
-``retarget``). A child's PyBullet world is its parent's memory, so it continues exactly,
-which ``restoreState`` does not: every leaf's bag is, byte for byte, the bag of a straight
-:meth:`~projection_server.simulation.runner.Simulator.run` (tests compare them).
+position at several angles and times, grasps at several forces) step alike until their
+commands first differ. :func:`run_tree` runs them as a tree of processes: a process steps
+while the commands of all its parametrizations agree, then forks a child for each group
+whose commands for the next step agree, and each child goes on with its group's
+parameters (the task's ``retarget``). A child's PyBullet world is its parent's memory, so
+it continues exactly, which ``restoreState`` does not: every leaf's bag is, byte for byte,
+the bag of a straight :meth:`~projection_server.simulation.runner.Simulator.run` (tests
+compare them). A MuJoCo world is all in the process's objects (``Engine.copyable``):
+there a group goes on in a deep copy of the projection, in the same process, which costs
+a few milliseconds where a fork and the pages its child copies cost tens.
 
 The monitor's messages of the shared steps are kept, not written. Each leaf writes a bag of
 its own: its own ``/projection/info`` first, then the kept messages in the order they were
@@ -20,15 +23,18 @@ process that called :func:`run_tree` stops its whole tree.
 
 from __future__ import annotations
 
+import copy
 import gc
 import math
 import os
+import time
 import traceback
 from typing import Any, Callable, TYPE_CHECKING
 
 from projection_server.bags import BagWriter, Record, TOPICS, typestore
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.lifetime import die_with_parent
+from projection_server.simulation import engines
 from projection_server.simulation.runner import Projection, projection_info
 
 if TYPE_CHECKING:
@@ -120,10 +126,34 @@ def _grow(projection: Projection, log: _SharedLog, group: list[tuple[int, tuple[
     except Exception as exc:
         return _fail(group, exc, report)
     code = 0
+    if engines.get(physics.engine).copyable:   # the world copies: no process to fork
+        parts = list(subgroups.values())
+        for subgroup in parts[:-1]:
+            code |= _grow(*_copied(projection, log), subgroup, settings, report)
+        projection.cpu_from = time.process_time()   # what it shared is its parent's
+        return code | _grow(projection, log, parts[-1], settings, report)
     for subgroup in subgroups.values():
         if _forked(lambda: _grow(projection, log, subgroup, settings, report)) != 0:
             code = 1
     return code
+
+
+def _copied(projection: Projection, log: _SharedLog) -> tuple[Projection, _SharedLog]:
+    """A copy of ``projection`` as it is now, logging into a copy of ``log``: for an
+    engine whose world copies with it (``Engine.copyable``)."""
+    # What no step changes is shared, not copied: the scenario, the settings, the records
+    # and messages made so far (each is new when made, then left as it is).
+    cpu = time.process_time()
+    physics = projection.physics
+    keep = [projection.scenario, physics.scenario, physics.settings, log,
+            *projection.monitor.records]
+    copied = copy.deepcopy(projection, {id(x): x for x in keep})
+    copied.physics.after_copy()
+    copied.cpu_from = cpu
+    own = _SharedLog()
+    own.calls = list(log.calls)
+    copied.monitor.bag = own
+    return copied, own
 
 
 def _leaf(projection: Projection, log: _SharedLog, member: tuple[int, tuple[Job, Path]],

@@ -132,9 +132,14 @@ class Job:
     def family(self, settings: Settings) -> str | None:
         """Equal for projections that may share their first steps
         (:mod:`~projection_server.simulation.branching`): same scenario, program, settings
-        and set-up parameters. None if the program does not say which parameters set up."""
-        setup = get_program(self.program).setup(self.params)
-        if setup is None:
+        and set-up parameters. None if the program does not say which parameters set up, or
+        shares no steps on this engine (``Program.forks``)."""
+        from projection_server.simulation import engines
+
+        program = get_program(self.program)
+        setup = program.setup(self.params)
+        if setup is None or not (program.forks or engines.get(
+                self.settings(settings).physics.engine).copyable):
             return None
         parts = {'scenario': self._content_json, 'program': canonical_json(self.program),
                  'setup': canonical_json(setup),

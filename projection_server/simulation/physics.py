@@ -344,6 +344,10 @@ class Physics:
 
     engine = 'pybullet'
 
+    def after_copy(self) -> None:
+        """Bind in a deep copy of this physics what the copy could not (an engine whose
+        worlds copy: :class:`~projection_server.simulation.engines.Engine`)."""
+
     def __init__(self, client: Any, settings: Settings, scenario: Scenario | None = None,
                  tool_control: bool = False):
         self.client = client

@@ -94,7 +94,13 @@ class Projection:
     """One projection under way: ``job``'s fresh world in a session of its engine (of
     ``simulator``), its task and its monitor logging into ``bag`` (a
     :class:`~projection_server.bags.BagWriter`, or what writes like one), at step 0 with the
-    ``/projection/info`` written."""
+    ``/projection/info`` written.
+
+    ``cpu_from``: the process's CPU time (``time.process_time``) when this projection's own
+    steps began: 0 in the process that built it, or in a process forked from that one; a
+    copy's when it was copied (:mod:`~projection_server.simulation.branching`)."""
+
+    cpu_from = 0.0
 
     def __init__(self, simulator: Simulator | Any, job: Job, settings: Settings, bag: Any):
         """``simulator``: a :class:`Simulator`, or a PyBullet client of the caller's (the

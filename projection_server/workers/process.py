@@ -125,10 +125,12 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
 
     def report(index: int, result: Any, ok: bool) -> None:   # in the leaf's process
         if ok:   # the finished projection: its timeline, from the records it has in memory
-            cpu = time.process_time()   # the leaf's own steps (its clock began at its fork)
+            # The leaf's own steps: its process's clock began at its fork, or at its copy.
+            start = time.process_time()
+            cpu = start - result.cpu_from
             result = timeline_of(result, leaves[index][1])
             cost.record('leaf', str(leaves[index][1]), end=time.time(), sim_cpu=cpu,
-                        timeline_cpu=time.process_time() - cpu)
+                        timeline_cpu=time.process_time() - start)
         ended(index).write_bytes(pickle.dumps(LeafResult(index, result, ok)))
         os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 

@@ -179,9 +179,12 @@ def test_a_tree_over_its_time_limit_fails_each_projection_with_its_own_timeout(t
 
 
 def test_the_prefetch_plan_queues_whole_families_and_depth_ahead_otherwise(monkeypatch):
-    grasps = [{'force': f, 'position': 0.0} for f in (1, 3, 5, 7, 9)]
-    assert projection.prefetch_plan('grasp_object', grasps, 2) == [[0, 1, 2], [3], [4], [],
-                                                                    []]
+    turns = [{'angle': a} for a in (0.1, 0.3, 0.5, 0.7, 0.9)]   # a program that shares nothing
+    assert projection.prefetch_plan('turn_pancake', turns, 2) == [[0, 1, 2], [3], [4], [], []]
+    # On MuJoCo, grasps share all but their force: two positions' families, then the third's.
+    grasps = [{'force': f, 'position': x} for x in (0.0, 0.02, -0.02) for f in (1, 5)]
+    assert projection.prefetch_plan('grasp_object', grasps, 1, {'engine': 'mujoco'}) == [
+        [0, 1, 2, 3], [], [4, 5], [], [], []]
     pours = [{'angle': a, 'time': 0.5, 'position': x} for x in (0.0, 0.02, 0.04, 0.06)
              for a in (1.9, 2.0)]
     # Position slowest: the families of the first three positions at once, then the fourth.
@@ -266,17 +269,51 @@ def test_a_plans_parametrizations_run_as_a_tree_with_the_bags_of_their_straight_
     plan_jobs = [Job.checked(make_scenario(), 'plan', {'force': f}, None, PLAN)
                  for f in (1.0, 5.0, 11.0)]
     assert len({job.family(settings) for job in plan_jobs}) == 1
+    results = _as_tree_and_straight(plan_jobs, settings, simulator, tmp_path, caplog)
+    outcomes = [{e[0] for e in result.timeline['events']} for result in results]
+    assert 'slip' in outcomes[0] and 'lift' in outcomes[1] and 'slip' not in outcomes[1]
+
+
+def test_grasps_that_differ_in_their_force_share_their_approach_on_mujoco_only(
+        make_scenario, tmp_path, caplog):
+    # The grasp's force acts only when its fingers close: the world's build, the egg's
+    # settling and the approach are stepped once for every force, and each force goes on
+    # in a copy of the MuJoCo world. A fork of a PyBullet worker costs what they share.
+    caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
+    settings, simulator = load_settings(), Simulator()
+    engine = 'mujoco'
+    on_pybullet = Job.checked(make_scenario(), 'grasp_object', {'force': 1.0})
+    assert on_pybullet.family(settings) is None
+    assert projection.prefetch_plan('grasp_object', [{'force': 1.0}, {'force': 5.0}], 0) == [
+        [0], [1]]
+    assert projection.prefetch_plan('grasp_object', [{'force': 1.0}, {'force': 5.0}], 0,
+                                    {'engine': engine}) == [[0, 1], []]
+    forces = (11.0, 1.0, 5.0)   # the egg breaks in the first copy: the others' stays whole
+    grasp_jobs = [Job.checked(make_scenario(), 'grasp_object', {'force': f, 'position': 0.0},
+                              {'engine': engine}) for f in forces]
+    other = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0, 'position': 0.02},
+                        {'engine': engine})
+    assert len({job.family(settings) for job in grasp_jobs}) == 1
+    assert other.family(settings) != grasp_jobs[0].family(settings)   # placed elsewhere
+    results = _as_tree_and_straight(grasp_jobs, settings, simulator, tmp_path, caplog)
+    outcomes = [{e[0] for e in result.timeline['events']} for result in results]
+    assert 'break' in outcomes[0] and 'slip' in outcomes[1] and not {'slip', 'break'} & outcomes[2]
+
+
+def _as_tree_and_straight(family, settings, simulator, tmp_path, caplog):
+    """The results of ``family``'s jobs through a pool, which runs them as one tree, each
+    checked against the job's straight run (bag files and timeline)."""
     straight = {}
     try:
-        for job in plan_jobs:
-            bag = tmp_path / 'straight' / job.key(settings) / BagStore.name(job, job.key(settings))
-            straight[job.key(settings)] = files_of(bag, project(simulator, job, settings, bag))
+        for job in family:
+            key = job.key(settings)
+            bag = tmp_path / 'straight' / key / BagStore.name(job, key)
+            straight[key] = files_of(bag, project(simulator, job, settings, bag))
     finally:
         simulator.close()
     with WorkerPool(tmp_path / 'pool', workers=1) as pool:
-        results = [f.result(timeout=120.0) for f in pool.submit_all(plan_jobs, 60.0)]
-    assert 'a tree of 3 projections' in caplog.text
-    for job, result in zip(plan_jobs, results):
+        results = [f.result(timeout=120.0) for f in pool.submit_all(family, 60.0)]
+    assert f'a tree of {len(family)} projections' in caplog.text
+    for job, result in zip(family, results):
         assert (files(result.bag), without_bag(result.timeline)) == straight[job.key(settings)]
-    outcomes = [{e[0] for e in result.timeline['events']} for result in results]
-    assert 'slip' in outcomes[0] and 'lift' in outcomes[1] and 'slip' not in outcomes[1]
+    return results

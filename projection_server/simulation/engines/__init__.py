@@ -45,12 +45,18 @@ class Session(Protocol):
 @dataclass(frozen=True)
 class Engine:
     """A physics engine: how to open it, and its builders of object classes and robot
-    models (None: the engine cannot build that unit)."""
+    models (None: the engine cannot build that unit).
+
+    ``copyable``: its whole world lives in the process's objects, so a deep copy of a
+    projection, then ``after_copy()`` on the copy's physics, goes on exactly as the
+    original would (projections that part copy it where they part: :mod:`~projection_server.
+    simulation.branching`). PyBullet's world lives in its server: it is not."""
 
     name: str
     open: Callable[[], Session]
     object_builder: Callable[[str], Callable[[Any, Entity], None] | None]
     robot_builder: Callable[[str], Callable[..., None] | None]
+    copyable: bool = False
 
 
 @functools.cache

@@ -93,8 +93,25 @@ class GraspObject:
             self.gripper.move(*target)
 
     def control(self, physics: Physics) -> None:
-        if physics.time >= APPROACHED and self.gripper.command != 'close':
+        if self._closes(physics.step_count):
             self.gripper.close(self.force, CLOSING_SPEED)
+
+    def _closes(self, step: int) -> bool:
+        """Whether the control step ``step`` (the world at it) closes the fingers."""
+        return (step % self._physics.settings.control.steps_per_control == 0
+                and self._physics.time >= APPROACHED and self.gripper.command != 'close')
+
+    def command_at(self, params: dict[str, float], step: int) -> float | None:
+        """The grip force that ``params`` command from the step after ``step`` on; None
+        before the fingers close: grasps that differ only in their force step alike
+        until then (:mod:`~projection_server.simulation.branching`)."""
+        if self.gripper.command == 'close' or self._closes(step):
+            return params['force']
+        return None
+
+    def retarget(self, params: dict[str, float]) -> None:
+        """Go on with the force of ``params`` (the fingers have not closed yet)."""
+        self.force = params['force']
 
     def state(self) -> list[tuple[str, int, str, str]]:
         """``(robot, -1, phase, egg)``: the phase under way (``phases``)."""
@@ -115,5 +132,10 @@ PROGRAM = register(Program(
     ),
     create=GraspObject,
     doc=__doc__.splitlines()[0],
+    # The position places the gripper and the lift time sets the schedule; the force acts
+    # only when the fingers close, at 0.8 s of the grasp's 3.8 s: a copy of a MuJoCo world
+    # pays for that, a fork of a PyBullet worker does not (bench/RESULTS.md).
+    setup_params=('position', 'lift_time'),
+    forks=False,
     engines=('pybullet', 'mujoco'),
 ))

@@ -72,7 +72,10 @@ class Program:
     seeded from one projection's key). Parametrizations that agree in them step alike until
     their commands part, so they can share those steps
     (:mod:`projection_server.simulation.branching`). None (the default): the program does not
-    say, and each parametrization runs from the start.
+    say, and each parametrization runs from the start. A program whose shared steps cost
+    less than a fork and the pages its child copies (a grasp's 0.8 s of 3.8) does not
+    ``forks``: its parametrizations share steps only on an engine whose worlds copy in the
+    process (``Engine.copyable``).
 
     A program that ``takes_plan`` (``plan``) is given the job's plan as ``create(...,
     plan=plan)``; its parameters are the plan's, any names, and it drives robots through
@@ -85,6 +88,8 @@ class Program:
     create: Callable[..., Task]
     doc: str = ''
     setup_params: tuple[str, ...] | None = None
+    # Whether what its parametrizations share is worth a fork of a process (below).
+    forks: bool = True
     takes_plan: bool = False
     # The engines whose protocol the program's task needs no more than (``engines``).
     engines: tuple[str, ...] = ('pybullet',)

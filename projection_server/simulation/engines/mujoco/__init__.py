@@ -51,4 +51,5 @@ def _robot_builder(name: str):
     return robot_builder(name)
 
 
-ENGINE = Engine('mujoco', MujocoSession, _object_builder, _robot_builder)
+# MjModel and MjData copy deeply: a copy of a projection steps on exactly.
+ENGINE = Engine('mujoco', MujocoSession, _object_builder, _robot_builder, copyable=True)

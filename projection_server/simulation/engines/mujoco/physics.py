@@ -79,6 +79,14 @@ class MujocoPhysics(Physics):
             if joint >= 0 and model.jnt_type[joint] == mujoco.mjtJoint.mjJNT_FREE:
                 self._free[body.body_id] = int(model.jnt_dofadr[joint])
 
+    def after_copy(self) -> None:
+        """Views into the copied MjData where the deep copy made arrays of their own."""
+        data = self.data
+        self._xpos, self._xquat, self._xipos = data.xpos, data.xquat, data.xipos
+        for gripper in self.grippers.values():
+            if isinstance(gripper, MujocoGripper):
+                gripper._qpos_array, gripper._qvel_array = data.qpos, data.qvel
+
     # --- registry -----------------------------------------------------------------------
     def replace_body(self, name: str, body_id: int, shape: Shape) -> Body:
         """The body of ``name`` now has ``shape`` (its builder changed it in place: a
