@@ -129,7 +129,12 @@ def _grow(projection: Projection, log: _SharedLog, group: list[tuple[int, tuple[
     if engines.get(physics.engine).copyable:   # the world copies: no process to fork
         parts = list(subgroups.values())
         for subgroup in parts[:-1]:
-            code |= _grow(*_copied(projection, log), subgroup, settings, report)
+            try:
+                copied = _copied(projection, log)
+            except Exception as exc:
+                code |= _fail(subgroup, exc, report)
+                continue
+            code |= _grow(*copied, subgroup, settings, report)
         projection.cpu_from = time.process_time()   # what it shared is its parent's
         return code | _grow(projection, log, parts[-1], settings, report)
     for subgroup in subgroups.values():
