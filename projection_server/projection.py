@@ -316,15 +316,12 @@ def prefetch_plan(program: str, params_list: list[dict[str, Any]], depth: int,
         shared = _programs.get(program)
     except ProjectionError:
         shared = None
-    if shared is not None and not shared.forks:
-        from projection_server.simulation import engines
-        engine = ((physics or {}).get('engine') or _config['engine']
-                  or load_settings().physics.engine)
-        try:
-            shared = shared if engines.get(engine).copyable else None
-        except ProjectionError:   # an unknown engine: the projection reports it
-            shared = None
-    if shared is None or shared.setup_params is None:
+    engine = (physics or {}).get('engine') or _config['engine'] or load_settings().physics.engine
+    try:
+        shares = shared is not None and shared.shares_steps(engine)
+    except ProjectionError:   # an unknown engine: the projection reports it
+        shares = False
+    if not shares:
         count = len(params_list)
         return [list(range(min(count, depth + 1)))] * (count > 0) + [
             [i + depth] if i + depth < count else [] for i in range(1, count)]

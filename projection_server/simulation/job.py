@@ -134,13 +134,10 @@ class Job:
         (:mod:`~projection_server.simulation.branching`): same scenario, program, settings
         and set-up parameters. None if the program does not say which parameters set up, or
         shares no steps on this engine (``Program.forks``)."""
-        from projection_server.simulation import engines
-
         program = get_program(self.program)
-        setup = program.setup(self.params)
-        if setup is None or not (program.forks or engines.get(
-                self.settings(settings).physics.engine).copyable):
+        if not program.shares_steps(self.settings(settings).physics.engine):
             return None
+        setup = program.setup(self.params)
         parts = {'scenario': self._content_json, 'program': canonical_json(self.program),
                  'setup': canonical_json(setup),
                  'settings': settings.projection_json(self.program, self.physics),

@@ -125,6 +125,17 @@ class Program:
             checked[name] = float(value)
         return checked
 
+    def shares_steps(self, engine: str) -> bool:
+        """Whether parametrizations may share their first steps on ``engine``: the program
+        names its set-up parameters, and forks, or the engine's worlds copy.
+
+        Raises:
+            ProjectionError: kind ``invalid_settings`` for an unknown engine.
+        """
+        from projection_server.simulation import engines
+
+        return self.setup_params is not None and (self.forks or engines.get(engine).copyable)
+
     def setup(self, values: Mapping[str, float]) -> tuple[float, ...] | None:
         """The set-up parameters' values of checked ``values``: parametrizations with equal
         ones (and the same scenario and settings) may share steps. None if they may not."""
