@@ -118,6 +118,12 @@ class Kinematics:
     def close(self) -> None:
         self.client.removeBody(self.body)
 
+    def __deepcopy__(self, memo: dict[int, Any]) -> Kinematics:
+        # One solver per robot and base serves the process's projections (each solve sets
+        # every joint it reads), copies of a projection too; its PyBullet connection cannot
+        # be copied: a copy's client would disconnect the one they share when collected.
+        return self
+
     def tool_pose(self, values: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
         """The tool point's world pose with the movable joints at ``values``."""
         c, body = self.client, self.body
