@@ -24,6 +24,11 @@ from rosbags.highlevel import AnyReader
 CODE_FIELDS = ('job_key', 'code_version')
 META_FIELDS = ('bag', 'job_key', 'code_version')
 GRASP = ('grasping', 'grasp_object', {'force': 5.0, 'position': 0.02})
+# MuJoCo's grasps: held, slipped, broken (each outcome's code runs)
+MUJOCO_GRASPS = {f'mujoco_{label}': ('grasping', 'grasp_object', params, {'engine': 'mujoco'})
+                 for label, params in (('held', {'force': 5.0, 'position': 0.0}),
+                                       ('slip', {'force': 1.0, 'position': 0.02}),
+                                       ('break', {'force': 11.0, 'position': -0.02}))}
 TURN = ('turning', 'turn_pancake', {'angle': 0.5})
 POUR_TREE = ('pouring', 'pour', [{'angle': a, 'time': 0.5, 'position': 0.0}
                                  for a in (1.84, 2.14)])
@@ -79,10 +84,15 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         simulator = Simulator()
         try:
-            for label, (name, program, params) in {'grasp': GRASP, 'turn': TURN}.items():
+            singles = {'grasp': (*GRASP, None), 'turn': (*TURN, None), **MUJOCO_GRASPS}
+            for label, (name, program, params, physics) in singles.items():
                 bag = Path(tmp) / label
-                timeline = project(simulator, Job.checked(scenario(name), program, params),
-                                   settings, bag)
+                timeline = project(simulator, Job.checked(scenario(name), program, params,
+                                                          physics), settings, bag)
+                if label.startswith('mujoco_'):
+                    events = sorted({e[0] if isinstance(e, list) else str(e)
+                                     for e in timeline.get('events', [])})
+                    print(f'{label}: events {events}', file=sys.stderr)
                 digests[label] = {'bag': bag_digest(bag), 'timeline': timeline_digest(timeline)}
             name, program, family = POUR_TREE
             leaves = [(Job.checked(scenario(name), program, p), Path(tmp) / f'pour{i}')

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 
+import pybullet_data
 import pytest
 
 from projection_server.simulation import load_settings
@@ -35,6 +36,15 @@ GRASPING = {
                         'breaking_force': 10.0}},
     ],
 }
+
+
+# The Panda of pybullet_data as the knowledge base's panda_robot places it, by the table.
+PANDA = {'name': 'panda_robot', 'class': 'robot', 'pose': {'xyz': [-0.68, 0.0, 0.72]},
+         'properties': {'model': 'urdf',
+                        'file': f'{pybullet_data.getDataPath()}/franka_panda/panda.urdf',
+                        'tool_link': 'panda_hand', 'tool_offset': [0, 0, 0.1034],
+                        'finger_joints': ['panda_finger_joint1', 'panda_finger_joint2'],
+                        'max_force': 20.0, 'home': [0, -0.785, 0, -2.356, 0, 1.571, 0.785]}}
 
 
 @pytest.fixture

@@ -5,6 +5,8 @@ their cancellation."""
 
 from __future__ import annotations
 
+import copy
+import gc
 import logging
 import os
 from pathlib import Path
@@ -16,11 +18,15 @@ import yaml
 
 from projection_server import projection
 from projection_server.simulation import Job, load_settings, ProjectionError
+from projection_server.simulation import branching
 from projection_server.simulation.branching import run_tree, start_tree
-from projection_server.simulation.runner import Simulator
+from projection_server.simulation.runner import Projection, Simulator
+from projection_server.timeline import translate_records
 from projection_server.workers.bag_store import BagStore
 from projection_server.workers.local import WorkerPool
 from projection_server.workers.run import project
+
+from .conftest import PANDA
 
 # The pouring scenario with a small batter: forty particles pour in well under a second.
 SMALL = yaml.safe_load((Path(__file__).parent / 'pouring.yaml').read_text())
@@ -272,6 +278,58 @@ def test_a_plans_parametrizations_run_as_a_tree_with_the_bags_of_their_straight_
     results = _as_tree_and_straight(plan_jobs, settings, simulator, tmp_path, caplog)
     outcomes = [{e[0] for e in result.timeline['events']} for result in results]
     assert 'slip' in outcomes[0] and 'lift' in outcomes[1] and 'slip' not in outcomes[1]
+
+
+# The Panda's top grasp and lift (the robot loop's plan), parted where its force first acts.
+TOP_PLAN = [{'action': 'move_to', 'object': 'egg1', 'offset': [0, 0, 0.10],
+             'orientation': 'top', 'speed': 0.5},
+            {'action': 'move_to', 'object': 'egg1', 'offset': [0, 0, 0], 'speed': 0.1},
+            {'action': 'close_gripper', 'force': {'param': 'force'}},
+            {'action': 'wait', 'seconds': 0.3},
+            {'action': 'move_by', 'offset': [0, 0, 0.1]},
+            {'action': 'wait', 'seconds': 0.5}]
+
+
+def test_a_urdf_arms_plan_runs_as_a_tree_of_mujoco_copies_with_the_bags_of_its_straight_runs(
+        make_scenario, tmp_path, caplog):
+    # A URDF arm's world copies with its projection, but its inverse kinematics (a PyBullet
+    # client of the process) is shared by the copies: each copy's plan solves in it.
+    caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
+    settings, simulator = load_settings(), Simulator()
+    scenario = make_scenario()
+    scenario['entities'][1] = copy.deepcopy(PANDA)
+    plan_jobs = [Job.checked(scenario, 'plan', {'force': f}, {'engine': 'mujoco'}, TOP_PLAN)
+                 for f in (12.0, 1.0, 5.0)]   # breaks in the first copy, slips, lifts
+    assert len({job.family(settings) for job in plan_jobs}) == 1
+    results = _as_tree_and_straight(plan_jobs, settings, simulator, tmp_path, caplog)
+    outcomes = [{e[0] for e in result.timeline['events']} for result in results]
+    assert 'break' in outcomes[0] and 'slip' in outcomes[1], outcomes
+    assert 'lift' in outcomes[2] and not {'slip', 'break'} & outcomes[2], outcomes
+
+
+def test_a_collected_copy_of_a_urdf_arms_projection_leaves_the_original_its_solver(
+        make_scenario, tmp_path):
+    # A copy that shared the arm's PyBullet solver by copying its client disconnected it
+    # when collected: the original's next move failed ('Not connected to physics server').
+    settings, simulator = load_settings(), Simulator()
+    scenario = make_scenario()
+    scenario['entities'][1] = copy.deepcopy(PANDA)
+    job = Job.checked(scenario, 'plan', {'force': 5.0}, {'engine': 'mujoco'}, TOP_PLAN)
+    try:
+        straight = project(simulator, job, settings, tmp_path / 'straight')
+        log = branching._SharedLog()
+        projection = Projection(simulator, job, settings, log)
+        projection.advance(int(1.0 * settings.physics.rate_hz))   # before the last moves
+        copied, _ = branching._copied(projection, log)
+        copied.advance()
+        del copied
+        gc.collect()
+        projection.advance()
+    finally:
+        simulator.close()
+    ours = translate_records(projection.monitor.records, tmp_path / 'straight',
+                             projection.scenario)
+    assert ours == straight
 
 
 def test_grasps_that_differ_in_their_force_share_their_approach_on_mujoco_only(

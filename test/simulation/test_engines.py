@@ -19,6 +19,8 @@ from projection_server.simulation.physics import bound_client
 from projection_server.simulation.scenario import parse_scenario
 from projection_server.simulation.world import settle
 
+from .conftest import PANDA
+
 
 @pytest.fixture(scope='module')
 def bullet():
@@ -84,14 +86,6 @@ def test_a_gripper_closes_at_its_speed_and_pushes_with_the_force_asked_for(make_
     for _ in range(480):   # closed on nothing: against its joint limits
         physics.step()
     assert gripper.command == 'close' and gripper.commanded_force == 4.0
-
-
-PANDA = {'name': 'panda_robot', 'class': 'robot', 'pose': {'xyz': [-0.68, 0.0, 0.72]},
-         'properties': {'model': 'urdf',
-                        'file': f'{pybullet_data.getDataPath()}/franka_panda/panda.urdf',
-                        'tool_link': 'panda_hand', 'tool_offset': [0, 0, 0.1034],
-                        'finger_joints': ['panda_finger_joint1', 'panda_finger_joint2'],
-                        'max_force': 20.0, 'home': [0, -0.785, 0, -2.356, 0, 1.571, 0.785]}}
 
 
 @pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
