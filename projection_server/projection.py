@@ -396,10 +396,12 @@ def programs() -> list[dict[str, Any]]:
     return _programs.describe()
 
 
-def physics_settings(program: str | None = None) -> list[dict[str, Any]]:
+def physics_settings(program: str | None = None,
+                     engine: str | None = None) -> list[dict[str, Any]]:
     """The engine settings a query may choose, each with its name, unit, min, max, whether
-    it is an integer, and its default for ``program`` (the settings file's without one)."""
-    return _get_backend().settings.describe_physics(program)
+    it is an integer, and its default for ``program`` (the settings file's without one) on
+    ``engine`` (the node's default engine without one)."""
+    return _get_backend().settings.describe_physics(program, engine)
 
 
 def start() -> None:

@@ -3,10 +3,11 @@
 The settings are part of every projection's cache key and are recorded in its bag, so the
 translation of a bag uses the timeline thresholds the bag was made with.
 
-The engine settings of :data:`PHYSICS_OPTIONS` can be chosen per program (the ``programs``
-section of the file) and per query (``make_projection(..., [physics(_{...})], TL)``); a
-projection uses ``settings.for_projection(program, physics)``: the file's settings, then the
-program's, then the query's. A finer time step keeps the control and logging rates::
+The engine settings of :data:`PHYSICS_OPTIONS` can be chosen per engine and per program (the
+``engines`` and ``programs`` sections of the file) and per query
+(``make_projection(..., [physics(_{...})], TL)``); a projection uses
+``settings.for_projection(program, physics)``: the file's settings, then its engine's, then
+the program's, then the query's. A finer time step keeps the control and logging rates::
 
     >>> load_settings().for_projection('grasp_object', {'rate_hz': 960}).control
     ControlSettings(steps_per_control=16, steps_per_log=16)
@@ -146,20 +147,24 @@ PHYSICS_OPTIONS: dict[str, PhysicsOption] = {o.name: o for o in (
 class Settings:
     """Everything besides the scenario, program and parameters that shapes a projection.
 
-    ``programs`` maps a program's name to the :data:`PHYSICS_OPTIONS` values it runs with
-    instead of ``physics``'s; :meth:`for_projection` gives the settings of one projection.
+    ``engines`` maps an engine's name to the :data:`PHYSICS_OPTIONS` values its projections
+    run with instead of ``physics``'s, and ``programs`` a program's name to those it runs
+    with on any engine; :meth:`for_projection` gives the settings of one projection.
     """
 
     physics: PhysicsSettings
     control: ControlSettings
     timeline: TimelineSettings
     programs: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    engines: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain, JSON-able form (tuples become lists; no ``programs`` key when empty)."""
+        """Plain, JSON-able form (tuples become lists; no ``programs`` or ``engines`` key
+        when empty, as in a projection's settings)."""
         data = _jsonable(asdict(self))
-        if not data['programs']:
-            del data['programs']
+        for section in ('programs', 'engines'):
+            if not data[section]:
+                del data[section]
         # PyBullet's projections keep the keys and bags they had before there was a choice.
         if data['physics']['engine'] == ENGINES[0]:
             del data['physics']['engine']
@@ -170,17 +175,27 @@ class Settings:
         """Check and convert a mapping of the form of ``config/physics.yaml``."""
         sections = {'physics': PhysicsSettings, 'control': ControlSettings,
                     'timeline': TimelineSettings}
-        _check_keys('settings', {k: v for k, v in data.items() if k != 'programs'}, sections)
+        _check_keys('settings', {k: v for k, v in data.items()
+                                 if k not in ('programs', 'engines')}, sections)
         settings = cls(**{name: _section(name, section, data[name])
                           for name, section in sections.items()})
-        programs = data.get('programs') or {}
-        if not isinstance(programs, dict):
-            raise ProjectionError(ErrorKind.INVALID_SETTINGS, 'programs: expected a mapping')
-        checked = {}
-        for program, overrides in programs.items():
-            checked[str(program)] = check_physics(overrides, settings.control_hz,
-                                                  where=f'programs.{program}')
-        return replace(settings, programs=checked)
+        checked: dict[str, dict[str, dict[str, Any]]] = {}
+        for part in ('programs', 'engines'):
+            entries = data.get(part) or {}
+            if not isinstance(entries, dict):
+                raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{part}: expected a mapping')
+            checked[part] = {}
+            for name, overrides in entries.items():
+                where = f'{part}.{name}'
+                if part == 'engines' and name not in ENGINES:
+                    raise ProjectionError(ErrorKind.INVALID_SETTINGS, f'{where}: not an engine; '
+                                          f'the engines: {", ".join(ENGINES)}')
+                values = check_physics(overrides, settings.control_hz, where=where)
+                if part == 'engines' and 'engine' in values:
+                    raise ProjectionError(ErrorKind.INVALID_SETTINGS,
+                                          f'{where}: an engine\'s settings choose no engine')
+                checked[part][str(name)] = values
+        return replace(settings, **checked)
 
     @property
     def control_hz(self) -> int:
@@ -192,10 +207,13 @@ class Settings:
 
     def for_projection(self, program: str,
                        physics: Mapping[str, Any] | None = None) -> Settings:
-        """The settings of one projection of ``program``: the program's physics options,
+        """The settings of one projection of ``program``: its engine's physics options (the
+        engine ``physics`` or the program chooses, else these settings'), the program's,
         then ``physics`` (a query's, checked here), over these settings. Idempotent."""
-        overrides = {**self.programs.get(program, {}),
-                     **check_physics(physics or {}, self.control_hz)}
+        own = self.programs.get(program, {})
+        query = check_physics(physics or {}, self.control_hz)
+        engine = query.get('engine') or own.get('engine') or self.physics.engine
+        overrides = {**self.engines.get(engine, {}), **own, **query}
         base = self.physics
         values = {**{name: getattr(base, name) for name in PHYSICS_OPTIONS}, **overrides}
         rate = values['rate_hz']
@@ -220,9 +238,12 @@ class Settings:
     def _projection_json(self) -> dict[tuple[Any, ...], str]:
         return {}
 
-    def describe_physics(self, program: str | None = None) -> list[dict[str, Any]]:
-        """The :data:`PHYSICS_OPTIONS` with their ranges and defaults (``program``'s)."""
-        defaults = self.for_projection(program) if program else self
+    def describe_physics(self, program: str | None = None,
+                         engine: str | None = None) -> list[dict[str, Any]]:
+        """The :data:`PHYSICS_OPTIONS` with their ranges and defaults (``program``'s, on
+        ``engine`` or these settings' engine)."""
+        chosen = {'engine': engine} if engine is not None else None
+        defaults = self.for_projection(program or '', chosen)
         described = [option.describe(getattr(defaults.physics, name))
                      for name, option in PHYSICS_OPTIONS.items()]
         for entry in described:
@@ -269,9 +290,10 @@ def check_physics(overrides: Any, control_hz: int = 1,
     return checked
 
 
-def describe_physics(program: str | None = None) -> list[dict[str, Any]]:
+def describe_physics(program: str | None = None,
+                     engine: str | None = None) -> list[dict[str, Any]]:
     """:meth:`Settings.describe_physics` of the settings file."""
-    return load_settings().describe_physics(program)
+    return load_settings().describe_physics(program, engine)
 
 
 def config_path() -> Path:

@@ -368,12 +368,17 @@ projection_options(Program, Options, Timeout, Physics, Worlds) :-
 % program's own: a 4x finer pour takes about 16x as long as the pour.
 default_timeout(Program, Physics, Timeout) :-
     projection_default_timeout(Default),
-    foldl(cost_factor(Program), Physics, 1, Factor),
+    (   memberchk(engine-Engine, Physics) -> true ; Engine = @(none) ),
+    py_call('projection_server.projection':physics_settings(Program, Engine), Settings),
+    foldl(cost_factor(Settings), Physics, 1, Factor),
     Timeout is Default * Factor.
 
-cost_factor(Program, Name-Value, F0, F) :-
+% cost_factor(+Settings, +Name-Value, +F0, -F): F0 times as many more steps or
+% solver iterations as Value is of the default (of the projection's engine).
+cost_factor(Settings, Name-Value, F0, F) :-
     (   memberchk(Name, [rate_hz, solver_iterations]),
-        projection_physics_setting(Program, Name, Setting),
+        member(Setting, Settings),
+        get_dict(name, Setting, Name), !,
         get_dict(default, Setting, Own), Own > 0
     ->  F is F0 * max(1, Value / Own)
     ;   F = F0

@@ -1,6 +1,6 @@
 """URDF arms and mesh and URDF objects on the second engine, through the live node: the
 Panda's top grasp and lift of the egg (bench/robot_loop.py's plan) slips, lifts and breaks
-alike on PyBullet and MuJoCo, at a 4x finer step too; a mesh and URDF objects rest on the
+alike on PyBullet and MuJoCo, at 960 Hz too (4x PyBullet's step, 8x MuJoCo's); a mesh and URDF objects rest on the
 table where PyBullet puts them and a push moves them as far; the xArm's linkage gripper
 slips, lifts and breaks alike on both; an SDF robot, which MuJoCo does not build, is an
 error naming the robot and the engine."""
@@ -48,7 +48,7 @@ CELLS = {0.22: {1: 'slip', 5: 'lifted', 12: 'break'}, 0.08: {3: 'slip', 8: 'lift
 
 @pytest.fixture(scope='module')
 def outcomes(call):
-    """Per friction, the cells on both engines at the knowledge base's rate and at 4x."""
+    """Per friction, the cells on both engines at their own rates and at 960 Hz."""
     return {(friction, step): panda(call, friction, list(cells), physics)
             for friction, cells in CELLS.items()
             for step, physics in (('1x', ''), ('4x', ', rate_hz: 960'))}

@@ -41,6 +41,10 @@ def test_finer_physics_multiply_the_default_limit_by_their_cost(prolog):
     assert timeout(prolog, 'turn_pancake',
                    f'[physics(_{{rate_hz: {4 * rate}, solver_iterations: {4 * own}}})]') == DEFAULT * 16
     assert timeout(prolog, 'plan', '[physics(_{rate_hz: 480})]') == DEFAULT * 2
+    # and the engine's: MuJoCo steps at 120 Hz (config/physics.yaml)
+    assert timeout(prolog, 'grasp_object', '[physics(_{engine: mujoco, rate_hz: 480})]'
+                   ) == DEFAULT * 4
+    assert timeout(prolog, 'grasp_object', '[physics(_{engine: mujoco})]') == DEFAULT
 
 
 def test_coarser_physics_keep_the_default_and_a_given_limit_is_kept(prolog):

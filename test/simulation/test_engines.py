@@ -80,10 +80,11 @@ def test_a_gripper_closes_at_its_speed_and_pushes_with_the_force_asked_for(make_
     gripper.place((0.0, 0.5, 1.0), (0.0, 0.0, 0.0, 1.0), approach=0.0, lift=0.0,
                   opening=0.07)
     gripper.close(4.0, 0.03)
-    for _ in range(24):   # 0.1 s in the air: closes at 0.03 m/s a finger
+    rate = physics.settings.physics.rate_hz
+    for _ in range(round(0.1 * rate)):   # 0.1 s in the air: closes at 0.03 m/s a finger
         physics.step()
     assert gripper.opening() == pytest.approx(0.07 - 2 * 0.03 * 0.1, abs=1e-3)
-    for _ in range(480):   # closed on nothing: against its joint limits
+    for _ in range(2 * rate):   # closed on nothing: against its joint limits
         physics.step()
     assert gripper.command == 'close' and gripper.commanded_force == 4.0
 

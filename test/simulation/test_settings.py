@@ -43,6 +43,41 @@ def test_the_settings_of_a_projection_are_a_fixed_point(settings):
     assert Settings.from_dict(once.to_dict()) == once
 
 
+def test_an_engines_settings_lie_under_the_programs_and_the_querys(settings):
+    from dataclasses import replace
+
+    mujoco = settings.for_projection('grasp_object', {'engine': 'mujoco'})
+    assert mujoco.physics.rate_hz == settings.engines['mujoco']['rate_hz'] == 120
+    assert mujoco.control.steps_per_log * 60 == 120   # logging keeps its 60 Hz
+    assert mujoco.for_projection('grasp_object') == mujoco   # a fixed point
+    assert settings.for_projection('grasp_object').physics.rate_hz == 240   # PyBullet's
+    assert settings.for_projection('grasp_object', {'engine': 'mujoco', 'rate_hz': 480}
+                                   ).physics.rate_hz == 480
+    # The fixture's pour runs at 120 Hz with 20 iterations, on either engine.
+    pour = settings.for_projection('pour', {'engine': 'mujoco'}).physics
+    assert (pour.rate_hz, pour.solver_iterations) == (120, 20)
+    # A node whose default engine is MuJoCo runs a query that names none with its settings.
+    node = replace(settings, physics=replace(settings.physics, engine='mujoco'))
+    assert node.for_projection('grasp_object') == mujoco
+    described = {d['name']: d for d in settings.describe_physics('grasp_object', 'mujoco')}
+    assert described['rate_hz']['default'] == 120
+    assert {d['name']: d for d in settings.describe_physics('grasp_object')
+            }['rate_hz']['default'] == 240
+
+
+@pytest.mark.parametrize('engines, words', [
+    ({'ode': {'rate_hz': 120}}, ['engines.ode', 'pybullet', 'mujoco']),
+    ({'mujoco': {'rate_hz': 100}}, ['engines.mujoco', 'multiple of 60']),
+    ({'mujoco': {'engine': 'pybullet'}}, ['engines.mujoco', 'no engine']),
+])
+def test_an_engines_settings_in_the_file_are_checked_too(engines, words):
+    data = load_settings().to_dict()
+    data['engines'] = engines
+    with pytest.raises(ProjectionError) as info:
+        Settings.from_dict(data)
+    assert all(word in str(info.value) for word in words), str(info.value)
+
+
 @pytest.mark.parametrize('physics, words', [
     ({'rate_hz': 1000}, ['rate_hz', 'multiple of 60']),
     ({'rate_hz': 30}, ['rate_hz', '[60, 4800]']),
