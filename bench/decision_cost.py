@@ -1,7 +1,7 @@
 """Where a certified robust choice's wall time goes, end to end through a live node.
 
     tools/with_env.sh python bench/decision_cost.py [--repeat 3] [--seed 1]
-        [--engines mujoco,pybullet] [--keep DIR] [--before COMMAND]
+        [--engines mujoco,pybullet,mujoco:240] [--keep DIR] [--before COMMAND]
 
 With ``--before COMMAND`` (an executable that runs a node of other code, e.g. of an earlier
 commit installed with ``pip install --prefix``, its ``PYTHONPATH`` and ``AMENT_PREFIX_PATH``
@@ -12,7 +12,9 @@ One node with 2 workers and an empty bag directory, its cost log on
 (``PROJECTION_SERVER_COST_LOG``, :mod:`projection_server.workers.cost`); each round asks
 bench/engines.py's ``robust_parametrization/7`` over the 33 grasp cells (egg1's friction
 uniform(0.2, 0.4), breaking_force normal(10, 1.5)) on each engine, a fresh copy of the
-scenario each time (nothing cached), seeds ``--seed`` on. Printed per query, from the log:
+scenario each time (nothing cached), seeds ``--seed`` on. Printed per query, from the log: An engine given as
+``ENGINE:RATE`` runs at ``RATE`` Hz instead of its own (``engines`` in config/physics.yaml):
+``mujoco:240`` against MuJoCo's own 120 Hz, in the same run.
 
 * ``wall``: the query's wall seconds at the client, and the ``floor``: the sum of the
   projections' :meth:`Simulator.run` CPU seconds in the workers, over 2 workers;
@@ -114,7 +116,9 @@ def report(what: str, seconds: float, f: dict[str, float], robust: dict, best: d
 
 def main() -> int:
     parser = harness.arguments(__doc__, repeat=3, seed=1)
-    parser.add_argument('--engines', default='mujoco,pybullet')
+    parser.add_argument('--engines', default='mujoco,pybullet',
+                        help='engines, comma-separated; ENGINE:RATE runs ENGINE at RATE Hz '
+                             'rather than its own (e.g. mujoco:240)')
     parser.add_argument('--keep', type=Path, help='copy each query\'s cost log here')
     parser.add_argument('--before', help='executable of a node of the code to compare with')
     args = parser.parse_args()
@@ -153,8 +157,9 @@ def main() -> int:
                         name = f'{engine} {code}'
                         log.write_text('')
                         cpu = harness.cpu_seconds(node.proc.pid)
+                        physics = engine.replace(':', ', rate_hz: ')
                         seconds, count, (robust,) = harness.timed(
-                            c, bags, ROBUST.format(grid=GRID, seed=seed, engine=engine,
+                            c, bags, ROBUST.format(grid=GRID, seed=seed, engine=physics,
                                                    ok=OK), timeout=3600)
                         f = breakdown(log)
                         if args.keep is not None:
