@@ -185,32 +185,37 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
     """
     if force <= 0.0:
         return 0.0
-    h = np.asarray(half_extents)
+    # The face's two coordinates as plain floats: on two numbers numpy's calls cost more
+    # than the comparisons, and clipping, absolute values and differences are exact in both.
+    h0, h1 = half_extents
     support = support_point(semi_axes, rot, pos, -face_normal)
-    offset = face_axes @ (support - face_centre)
-    centre = np.clip(offset, -h, h)
-    if np.any(np.abs(offset) > h):
+    o0, o1 = (face_axes @ (support - face_centre)).tolist()
+    c0 = -h0 if o0 < -h0 else h0 if o0 > h0 else o0
+    c1 = -h1 if o1 < -h1 else h1 if o1 > h1 else o1
+    if abs(o0) > h0 or abs(o1) > h1:
         # Along the rim: the face axis whose extent the deepest point does not exceed (or
         # exceeds least, at a corner).
-        along = int(np.argmin(np.abs(offset) - h))
-        edge_point = face_centre + face_axes.T @ centre
+        along = 0 if abs(o0) - h0 <= abs(o1) - h1 else 1
+        edge_point = face_centre + face_axes.T @ np.array([c0, c1])
         return rim_peak_pressure(force, semi_axes, rot, pos, edge_point, face_axes[along],
                                  face_normal, stiffness, rim_radius)
     a_max, b_min = max(semi_axes), min(semi_axes)
     # Patch radius of a full contact at the most curved spot: a safe first window.
     delta = math.sqrt(force / (math.pi * stiffness * b_min ** 2 / a_max))
     radius = math.sqrt(2.0 * a_max ** 2 / b_min * delta)
-    if np.all(h - np.abs(offset) > 1.5 * radius):
+    if h0 - abs(o0) > 1.5 * radius and h1 - abs(o1) > 1.5 * radius:
         # The whole patch lies on the face: the closed form of an unbounded face holds.
         local = rot.T @ (support - pos)
         load = curvature_load(force, semi_axes, local)
         return math.sqrt(load * stiffness / (math.pi * reference_radius(semi_axes)))
-    half = 2.0 * radius + float(np.abs(offset - centre).max())
+    half = 2.0 * radius + max(abs(o0 - c0), abs(o1 - c1))
     grown = False
     for _ in range(12):
-        lo, hi = np.maximum(centre - half, -h), np.minimum(centre + half, h)
+        lo = np.array([max(c0 - half, -h0), max(c1 - half, -h1)])
+        hi = np.array([min(c0 + half, h0), min(c1 + half, h1)])
+        h = (h0, h1)
         # Both axes at once: the same floats as np.linspace of each (a test compares).
-        u, v = np.linspace(lo, hi, _GRID).T
+        u, v = _linspace(lo, hi).T
         points = _grid_points(face_centre, face_axes, u, v)
         gaps = ellipsoid_gaps(semi_axes, rot, pos, points, face_normal)
         if not np.isfinite(gaps).any():
@@ -232,6 +237,19 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
             continue
         break
     return stiffness * (delta - float(gaps[np.isfinite(gaps)].min()))
+
+
+def _linspace(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``np.linspace(lo, hi, _GRID)``, the same floats (numpy's steps, start and end), without
+    its checks and conversions."""
+    y = _steps(_GRID) * ((hi - lo) / (_GRID - 1)) + lo
+    y[-1] = hi
+    return y
+
+
+@functools.lru_cache(maxsize=4)
+def _steps(n: int) -> np.ndarray:
+    return np.arange(n, dtype=float)[:, None]
 
 
 def _grid_points(centre: np.ndarray, axes: np.ndarray, u: np.ndarray,
