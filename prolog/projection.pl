@@ -613,7 +613,8 @@ projection_program(Program, Formal) :-
 %   Name is a physics setting that a query may choose for projections of
 %   Program (make_projection/5's physics(Dict) option); `plan` for plans.  Setting is a dict
 %   with its name, unit, min, max, integer (`@true` or `@false`), doc and
-%   default (the program's, from config/physics.yaml); that of `rate_hz` has
+%   default (the program's on the node's engine, from config/physics.yaml:
+%   MuJoCo's rate is its own); that of `rate_hz` has
 %   multiple_of: the step rate must be a multiple of the control and logging
 %   rates.
 %
