@@ -5,6 +5,7 @@
             translate/2,                % +Log, -Timeline
             projection_program/2,       % ?Program, -FormalParams:list(dict)
             projection_physics_setting/3, % ?Program, ?Name, -Setting:dict
+            projection_physics_setting/4, % ?Program, ?Engine, ?Name, -Setting:dict
             projection_default_timeout/1, % -Seconds
             with_query_context/2,       % +Context:dict, :Goal
             current_query_context/1,    % -Context:dict
@@ -632,6 +633,30 @@ projection_physics_setting(Program, Name, Setting) :-
     ;   projection_program(Program, _)
     ),
     py_call('projection_server.projection':physics_settings(Program), Settings),
+    member(Setting, Settings),
+    get_dict(name, Setting, Name0),
+    atom_string(Name, Name0).
+
+%!  projection_physics_setting(?Program, ?Engine, ?Name, -Setting:dict) is nondet.
+%
+%   As projection_physics_setting/3, with Setting's default that of Program on
+%   Engine (`pybullet` or `mujoco`): e.g. MuJoCo's own `rate_hz`, 120.
+%
+%   @error domain_error(physics_setting(engine, oneof(Engines)), Engine) for
+%          an Engine that is none of Engines.
+%   @error existence_error(program, Program) as projection_physics_setting/3.
+
+projection_physics_setting(Program, Engine, Name, Setting) :-
+    projection_physics_setting(Program, engine, EngineSetting),
+    get_dict(values, EngineSetting, Names),
+    maplist(string_atom, Names, Engines),
+    (   var(Engine)
+    ->  member(Engine, Engines)
+    ;   atom(Engine), memberchk(Engine, Engines)
+    ->  true
+    ;   domain_error(physics_setting(engine, oneof(Engines)), Engine)
+    ),
+    py_call('projection_server.projection':physics_settings(Program, Engine), Settings),
     member(Setting, Settings),
     get_dict(name, Setting, Name0),
     atom_string(Name, Name0).

@@ -90,6 +90,7 @@ sandbox:safe_primitive(projection:simulate(_, _, _, _, _)).
 sandbox:safe_primitive(projection:translate(_, _)).
 sandbox:safe_primitive(projection:projection_program(_, _)).
 sandbox:safe_primitive(projection:projection_physics_setting(_, _, _)).
+sandbox:safe_primitive(projection:projection_physics_setting(_, _, _, _)).
 sandbox:safe_primitive(timeline:timeline_create(_, _)).
 sandbox:safe_primitive(timeline:timeline_remove(_)).
 sandbox:safe_primitive(scenario:scenario_snapshot(_, _)).

@@ -49,6 +49,24 @@ def test_a_querys_physics_settings_are_used_and_recorded_in_the_bag(call):
     assert bag_settings(Path(default))['physics']['rate_hz'] == sols[0]['Rate']
 
 
+def test_each_engines_own_defaults_can_be_asked_and_a_projection_runs_with_them(call):
+    from pathlib import Path
+    r, sols = ask(call, '''
+        findall(E-R, ( projection_physics_setting(grasp_object, E, rate_hz, S),
+                       get_dict(default, S, R) ), Rates),
+        simulate(grasping, grasp_object, [(_, force, [5])], [physics(_{engine: mujoco})],
+                 Bag)''', mode=Q.ONCE)
+    assert r.ok, r.message
+    rates = {pair['args'][0]: pair['args'][1] for pair in sols[0]['Rates']}
+    assert rates == {'pybullet': 240, 'mujoco': 120}, rates
+    recorded = bag_settings(Path(sols[0]['Bag']))
+    assert recorded['physics']['rate_hz'] == 120
+    assert recorded['control'] == {'steps_per_control': 2, 'steps_per_log': 2}   # 60 Hz
+    r, _ = ask(call, 'projection_physics_setting(grasp_object, ode, rate_hz, S)', mode=Q.ONCE)
+    assert not r.ok and r.error_kind == 'domain_error', (r.error_kind, r.message)
+    assert all(w in r.message + r.error for w in ('ode', 'pybullet', 'mujoco')), r.message
+
+
 @pytest.mark.parametrize('options, kind, words', [
     ('[physics(_{rate_hz: 1000})]', 'domain_error', ['rate_hz', 'multiple_of(60)']),
     ('[physics(_{solver_iterations: 0})]', 'domain_error',
