@@ -211,9 +211,12 @@ def test_finishing_a_projection_query_stops_its_running_ray_workers(
         ray_query, ray_server, node):
     import rclpy
     from projection_interfaces.srv import PrologFinish
-    # Forces no other test projects: every one must be simulated.
+    # Forces no other test projects: every one must be simulated; at 20x the steps, so that
+    # the query is still running when it is finished (at the default step its six grasps
+    # could all end before the finish request reached the node).
     text = ('make_projection(grasping, grasp_object, '
-            '[(F, force, [2.31, 2.32, 2.33, 2.34, 2.35, 2.36])], _), fail')
+            '[(F, force, [2.31, 2.32, 2.33, 2.34, 2.35, 2.36])], '
+            '[physics(_{rate_hz: 4800})], _), fail')
     future = ray_query(text, Q.ONCE, timeout=300.0, query_id='ray/cancel')
     busy = busy_actors(future)
     finish = node.create_client(PrologFinish, f'{ray_server}/finish')
