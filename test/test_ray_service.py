@@ -194,7 +194,9 @@ def test_a_robust_choice_is_the_same_on_both_backends(ray_query, call):
 
 def test_an_actor_killed_mid_query_fails_it_as_worker_crashed_and_the_node_serves_on(
         ray_query):
-    text = 'simulate(grasping, grasp_object, [(_, force, [4.2]), (_, position, [0.01])], 60, L)'
+    # At 20x the steps: the grasp is still running when its actor is killed.
+    text = ('simulate(grasping, grasp_object, [(_, force, [4.2]), (_, position, [0.01])], '
+            '[physics(_{rate_hz: 4800}), timeout(120)], L)')
     future = ray_query(text, Q.ONCE, timeout=300.0)
     busy = busy_actors(future)
     os.kill(busy[0], signal.SIGKILL)
