@@ -213,7 +213,6 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
     for _ in range(12):
         lo = np.array([max(c0 - half, -h0), max(c1 - half, -h1)])
         hi = np.array([min(c0 + half, h0), min(c1 + half, h1)])
-        h = (h0, h1)
         # Both axes at once: the same floats as np.linspace of each (a test compares).
         u, v = _linspace(lo, hi).T
         points = _grid_points(face_centre, face_axes, u, v)
@@ -226,7 +225,7 @@ def pad_peak_pressure(force: float, semi_axes: tuple[float, float, float], rot: 
             continue
         delta, active = winkler_indentation(gaps, cell, force, stiffness)
         loaded = (gaps < delta).reshape(_GRID, _GRID)
-        cut = [lo[0] > -h[0], hi[0] < h[0], lo[1] > -h[1], hi[1] < h[1]]
+        cut = [lo[0] > -h0, hi[0] < h0, lo[1] > -h1, hi[1] < h1]
         edges = [loaded[0, :], loaded[-1, :], loaded[:, 0], loaded[:, -1]]
         if any(c and e.any() for c, e in zip(cut, edges)):
             half *= 1.6
