@@ -19,6 +19,11 @@ made, then those of its own steps.
 A parent waits for each child before it forks the next, so a tree uses one core, like one
 projection at a time. Every child dies with its parent (``PR_SET_PDEATHSIG``): stopping the
 process that called :func:`run_tree` stops its whole tree.
+
+Where the worlds copy, no process need be forked at all: :func:`run_in_process` runs the
+whole tree in the calling process, reporting each leaf there. A forked root costs a worker
+more than a grasp's shared approach saves (copy-on-write of the pages its child touches:
+bench/RESULTS.md); in the process, a tree costs only its copies.
 """
 
 from __future__ import annotations
@@ -44,7 +49,7 @@ if TYPE_CHECKING:
     from projection_server.simulation.job import Job
     from projection_server.settings import Settings
 
-__all__ = ['Report', 'run_tree', 'start_tree']
+__all__ = ['Report', 'run_in_process', 'run_tree', 'start_tree']
 
 # report(index, the finished Projection or a ProjectionError, ok): once per leaf, from the
 # leaf's process (which makes the timeline of a finished one, its records in memory).
@@ -71,6 +76,30 @@ def start_tree(simulator: Any, leaves: Sequence[tuple[Job, Path]], settings: Set
     return _fork(lambda: _root(simulator, list(enumerate(leaves)), settings, report), True)
 
 
+def run_in_process(simulator: Any, leaves: Sequence[tuple[Job, Path]], settings: Settings,
+                   report: Report) -> bool:
+    """:func:`run_tree` in the calling process, for an engine whose worlds copy
+    (``Engine.copyable``): each group goes on in a copy of the world, and ``report`` is
+    called here, after each leaf (what it does waits for the next leaf). Returns True:
+    every leaf is reported, a failure as a :class:`ProjectionError`.
+
+    Without the cyclic garbage collector, as :meth:`Simulator.run`, but for a young
+    collection after each leaf: what a finished leaf leaves in cycles (its copy of the
+    world) is freed before the next one's."""
+    collecting = gc.isenabled()
+    gc.disable()
+
+    def reported(index: int, result: Any, ok: bool) -> None:
+        report(index, result, ok)
+        gc.collect(1)   # the leaf before this one, unreachable since it was reported
+
+    try:
+        return _root(simulator, list(enumerate(leaves)), settings, reported) == 0
+    finally:
+        if collecting:
+            gc.enable()
+
+
 class _SharedLog:
     """Writes like a :class:`~projection_server.bags.BagWriter`, but only keeps the calls,
     to be made again into each leaf's bag."""
@@ -92,8 +121,10 @@ class _SharedLog:
 def _root(simulator: Any, group: list[tuple[int, tuple[Job, Path]]], settings: Settings,
           report: Report) -> int:
     try:
+        cpu = time.process_time()   # 0 in a forked root; the tree's start in the process
         log = _SharedLog()
         projection = Projection(simulator, group[0][1][0], settings, log)
+        projection.cpu_from = cpu
     except Exception as exc:
         return _fail(group, exc, report)
     return _grow(projection, log, group, settings, report)

@@ -97,8 +97,9 @@ class Projection:
     ``/projection/info`` written.
 
     ``cpu_from``: the process's CPU time (``time.process_time``) when this projection's own
-    steps began: 0 in the process that built it, or in a process forked from that one; a
-    copy's when it was copied (:mod:`~projection_server.simulation.branching`)."""
+    steps began: 0 unless set (a tree's root sets its start; a process forked from the
+    root's starts its clock at 0), a copy's when it was copied
+    (:mod:`~projection_server.simulation.branching`)."""
 
     cpu_from = 0.0
 

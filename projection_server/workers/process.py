@@ -17,7 +17,8 @@ the samples the worker has in memory (:mod:`projection_server.workers.run`). A
 :class:`~.messages.TreeEnded`. While a tree runs, the worker also takes
 :class:`~.messages.Project` commands (another query's projection): it pauses the tree
 (SIGSTOP to its process group), answers with a :class:`~.messages.Result` and continues the
-tree.
+tree. A tree of an engine whose worlds copy runs in the worker's own process, which takes
+them after each leaf.
 """
 
 from __future__ import annotations
@@ -114,10 +115,14 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
     import pickle
     import signal
 
+    from projection_server.simulation import engines
     from projection_server.simulation.branching import start_tree
     from projection_server.workers.run import timeline_of
 
     leaves = [(job, Path(path)) for job, path in payload]
+    if engines.get(leaves[0][0].settings(settings).physics.engine).copyable:
+        _tree_in_process(conn, simulator, leaves, settings)
+        return
     reader, writer = os.pipe()
 
     def ended(index: int) -> Path:   # where a leaf leaves its result
@@ -173,6 +178,36 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
     # The tree's CPU: every process of it has been waited for by its parent.
     cost.record('tree', str(leaves[0][1]), start=start, end=time.time(),
                 cpu=_children_cpu() - spent, leaves=[os.path.basename(b) for _, b in leaves])
+    conn.send(TreeEnded(complete))
+
+
+def _tree_in_process(conn: Any, simulator: Any, leaves: list[tuple[Any, Path]],
+                     settings: Any) -> None:
+    """A tree of an engine whose worlds copy, in this process
+    (:func:`~projection_server.simulation.branching.run_in_process`): each leaf answered as
+    it ends, then the :class:`Project` commands that came meanwhile (another query's
+    projection waits for a leaf, not for the tree)."""
+    from projection_server.simulation.branching import run_in_process
+    from projection_server.workers.run import timeline_of
+
+    def report(index: int, result: Any, ok: bool) -> None:
+        if ok:
+            start = time.process_time()
+            cpu = start - result.cpu_from
+            result = timeline_of(result, leaves[index][1])
+            cost.record('leaf', str(leaves[index][1]), end=time.time(), sim_cpu=cpu,
+                        timeline_cpu=time.process_time() - start)
+        conn.send(LeafResult(index, result, ok))
+        while conn.poll():
+            command = conn.recv()
+            if not isinstance(command, Project):   # Close: the tree goes with the worker
+                raise SystemExit(0)
+            _answer(conn, simulator, command, settings)
+
+    start, cpu = time.time(), time.process_time()
+    complete = run_in_process(simulator, leaves, settings, report)
+    cost.record('tree', str(leaves[0][1]), start=start, end=time.time(),
+                cpu=time.process_time() - cpu, leaves=[os.path.basename(b) for _, b in leaves])
     conn.send(TreeEnded(complete))
 
 

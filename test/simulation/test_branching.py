@@ -238,24 +238,29 @@ def _warm_worker(pool: WorkerPool) -> int:
 def _descendants(pid: int, deadline: float) -> set[int]:
     """The processes below ``pid`` once it has forked some (a tree under way)."""
     while True:
-        children = {}
-        for entry in os.listdir('/proc'):
-            if entry.isdigit():
-                try:
-                    stat = Path(f'/proc/{entry}/stat').read_text()
-                except OSError:
-                    continue
-                children.setdefault(int(stat.rsplit(')', 1)[1].split()[1]), []).append(
-                    int(entry))
-        found, todo = set(), [pid]
-        while todo:
-            for child in children.get(todo.pop(), []):
-                found.add(child)
-                todo.append(child)
+        found = _below(pid)
         if found:
             return found
         assert time.monotonic() < deadline, 'no tree started'
         time.sleep(0.005)
+
+
+def _below(pid: int) -> set[int]:
+    """The processes below ``pid`` now."""
+    children = {}
+    for entry in os.listdir('/proc'):
+        if entry.isdigit():
+            try:
+                stat = Path(f'/proc/{entry}/stat').read_text()
+            except OSError:
+                continue
+            children.setdefault(int(stat.rsplit(')', 1)[1].split()[1]), []).append(int(entry))
+    found, todo = set(), [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.add(child)
+            todo.append(child)
+    return found
 
 
 # A plan's parametrizations (Table I's grasp plan at three forces, on the pr2 gripper) part
@@ -356,6 +361,31 @@ def test_grasps_that_differ_in_their_force_share_their_approach_on_mujoco_only(
     results = _as_tree_and_straight(grasp_jobs, settings, simulator, tmp_path, caplog)
     outcomes = [{e[0] for e in result.timeline['events']} for result in results]
     assert 'break' in outcomes[0] and 'slip' in outcomes[1] and not {'slip', 'break'} & outcomes[2]
+
+
+def test_a_mujoco_tree_forks_nothing_and_answers_another_querys_projection_between_leaves(
+        make_scenario, tmp_path, caplog):
+    # Where the worlds copy, the worker runs a tree itself (a forked root cost more than a
+    # grasp's approach saves), and takes another query's projection after the leaf under
+    # way, not after the tree. At 960 Hz each grasp of the tree takes about half a second.
+    caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
+    physics = {'engine': 'mujoco', 'rate_hz': 960}
+    family = [Job.checked(make_scenario(), 'grasp_object', {'force': f, 'position': 0.0},
+                          physics) for f in (3.0, 4.0, 5.0, 6.0)]
+    quick = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0, 'position': 0.02},
+                        {'engine': 'mujoco'})
+    with WorkerPool(tmp_path, workers=1) as pool:
+        worker = _warm_worker(pool)
+        futures = pool.submit_all(family, 120.0, owner='q/grid')
+        answered = pool.submit(quick, 60.0, owner='q/quick')
+        assert os.path.isdir(answered.result(timeout=120.0).bag)
+        assert not all(f.done() for f in futures)   # it did not wait for the whole tree
+        assert _below(worker) == set()
+        results = [f.result(timeout=240.0) for f in futures]
+        assert pool.worker_pids == [worker]
+    assert 'a tree of 4 projections' in caplog.text
+    outcomes = [{e[0] for e in result.timeline['events']} for result in results]
+    assert not any({'slip', 'break'} & o for o in outcomes), outcomes   # 3-6 N hold it
 
 
 def _as_tree_and_straight(family, settings, simulator, tmp_path, caplog):
