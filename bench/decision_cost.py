@@ -6,7 +6,10 @@
 With ``--before COMMAND`` (an executable that runs a node of other code, e.g. of an earlier
 commit installed with ``pip install --prefix``, its ``PYTHONPATH`` and ``AMENT_PREFIX_PATH``
 first), a second node of that code asks the same queries, each right after this code's:
-the two are measured in the same run, under the same load.
+the two are measured in the same run, under the same load. Such an executable must start
+its node outside the source tree (``cd /tmp`` first): ``python -c`` imports the package of
+its working directory before any on ``PYTHONPATH``, and the two nodes would run the same
+code. Each node's lines say whether its grasps ran in trees.
 
 One node with 2 workers and an empty bag directory, its cost log on
 (``PROJECTION_SERVER_COST_LOG``, :mod:`projection_server.workers.cost`); each round asks
