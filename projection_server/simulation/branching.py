@@ -40,7 +40,7 @@ from projection_server.bags import BagWriter, Record, TOPICS, typestore
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.lifetime import die_with_parent
 from projection_server.simulation import engines
-from projection_server.simulation.runner import Projection, projection_info
+from projection_server.simulation.runner import collector_paused, Projection, projection_info
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -86,18 +86,12 @@ def run_in_process(simulator: Any, leaves: Sequence[tuple[Job, Path]], settings:
     Without the cyclic garbage collector, as :meth:`Simulator.run`, but for a young
     collection after each leaf: what a finished leaf leaves in cycles (its copy of the
     world) is freed before the next one's."""
-    collecting = gc.isenabled()
-    gc.disable()
-
     def reported(index: int, result: Any, ok: bool) -> None:
         report(index, result, ok)
         gc.collect(1)   # the leaf before this one, unreachable since it was reported
 
-    try:
+    with collector_paused():
         return _root(simulator, list(enumerate(leaves)), settings, reported) == 0
-    finally:
-        if collecting:
-            gc.enable()
 
 
 class _SharedLog:
