@@ -83,15 +83,11 @@ def run_in_process(simulator: Any, leaves: Sequence[tuple[Job, Path]], settings:
     called here, after each leaf (what it does waits for the next leaf). Returns True:
     every leaf is reported, a failure as a :class:`ProjectionError`.
 
-    Without the cyclic garbage collector, as :meth:`Simulator.run`, but for a young
-    collection after each leaf: what a finished leaf leaves in cycles (its copy of the
-    world) is freed before the next one's."""
-    def reported(index: int, result: Any, ok: bool) -> None:
-        report(index, result, ok)
-        gc.collect(1)   # the leaf before this one, unreachable since it was reported
-
+    Without the cyclic garbage collector, as :meth:`Simulator.run`: what the finished leaves
+    leave in cycles is small (0.3 MB for 11 grasps, 2.7 MB for 64), and is collected after
+    the tree; a young collection after each leaf cost 2.3 ms of its 60."""
     with collector_paused():
-        return _root(simulator, list(enumerate(leaves)), settings, reported) == 0
+        return _root(simulator, list(enumerate(leaves)), settings, report) == 0
 
 
 class _SharedLog:
