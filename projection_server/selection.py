@@ -34,6 +34,7 @@ the indifference zone D of the best's, and picks one by a rule (:data:`RULES`), 
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, TYPE_CHECKING
 
@@ -54,6 +55,8 @@ def certify_count(risk: float, confidence: float) -> int:
     return math.ceil(math.log(1.0 - confidence) / math.log(1.0 - risk) - 1e-12)
 
 
+# A choice's rounds ask for the same few bounds and tests again and again (a bisection each).
+@functools.lru_cache(maxsize=4096)
 def clopper_pearson(k: int, n: int, confidence: float) -> tuple[float, float]:
     """The one-sided Clopper-Pearson lower and upper bounds of a proportion of ``k`` in
     ``n``, each at ``confidence`` (together a two-sided interval at 2C - 1)."""
@@ -63,6 +66,7 @@ def clopper_pearson(k: int, n: int, confidence: float) -> tuple[float, float]:
     return low, high
 
 
+@functools.lru_cache(maxsize=4096)
 def sign_test(u: int, v: int) -> float:
     """One-sided exact sign test: P(at least ``u`` of ``u + v`` fair coin flips)."""
     return _upper_tail(u, u + v, 0.5) if u + v else 1.0
