@@ -5,6 +5,7 @@ their cancellation."""
 
 from __future__ import annotations
 
+import concurrent.futures
 import copy
 import gc
 import logging
@@ -365,13 +366,10 @@ def test_grasps_that_differ_in_their_force_share_their_approach_on_mujoco_only(
 
 def test_a_mujoco_tree_forks_nothing_and_answers_another_querys_projection_between_leaves(
         make_scenario, tmp_path, caplog):
-    # Where the worlds copy, the worker runs a tree itself (a forked root cost more than a
-    # grasp's approach saves), and takes another query's projection after the leaf under
-    # way, not after the tree. At 960 Hz each grasp of the tree takes about half a second.
+    # Where the worlds copy, the worker runs a tree itself (no fork, no pages copied), and
+    # takes another query's projection after the leaf under way, not after the tree.
     caplog.set_level(logging.DEBUG, logger='projection_server.workers.local.pool')
-    physics = {'engine': 'mujoco', 'rate_hz': 960}
-    family = [Job.checked(make_scenario(), 'grasp_object', {'force': f, 'position': 0.0},
-                          physics) for f in (3.0, 4.0, 5.0, 6.0)]
+    family = _slow_mujoco_family(make_scenario)
     quick = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0, 'position': 0.02},
                         {'engine': 'mujoco'})
     with WorkerPool(tmp_path, workers=1) as pool:
@@ -386,6 +384,34 @@ def test_a_mujoco_tree_forks_nothing_and_answers_another_querys_projection_betwe
     assert 'a tree of 4 projections' in caplog.text
     outcomes = [{e[0] for e in result.timeline['events']} for result in results]
     assert not any({'slip', 'break'} & o for o in outcomes), outcomes   # 3-6 N hold it
+
+
+def test_cancelling_a_mujoco_trees_owner_stops_it_and_the_pool_serves_on(make_scenario,
+                                                                         tmp_path):
+    # The tree runs in the worker's process: cancelling stops the worker with it, and what
+    # the tree had not answered fails as cancelled.
+    family = _slow_mujoco_family(make_scenario)
+    with WorkerPool(tmp_path, workers=1) as pool:
+        worker = _warm_worker(pool)
+        futures = pool.submit_all(family, 120.0, owner='q/tree')
+        concurrent.futures.wait(futures, timeout=120.0,
+                                return_when=concurrent.futures.FIRST_COMPLETED)
+        assert pool.cancel('q/tree') >= 1
+        kinds = []
+        for future in futures:
+            error = future.exception(timeout=120.0)
+            kinds.append(None if error is None else error.kind)
+        assert None in kinds and 'cancelled' in kinds and set(kinds) <= {None, 'cancelled'}
+        quick = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0},
+                            {'engine': 'mujoco'})
+        assert os.path.isdir(pool.run(quick, timeout=60.0))
+        assert pool.worker_pids != [worker]
+
+
+def _slow_mujoco_family(make_scenario) -> list[Job]:
+    """Four MuJoCo grasps at one position (a family) at 960 Hz: about half a second each."""
+    return [Job.checked(make_scenario(), 'grasp_object', {'force': f, 'position': 0.0},
+                        {'engine': 'mujoco', 'rate_hz': 960}) for f in (3.0, 4.0, 5.0, 6.0)]
 
 
 def _as_tree_and_straight(family, settings, simulator, tmp_path, caplog):
