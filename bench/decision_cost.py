@@ -9,7 +9,8 @@ first), a second node of that code asks the same queries, each right after this 
 the two are measured in the same run, under the same load. Such an executable must start
 its node outside the source tree (``cd /tmp`` first): ``python -c`` imports the package of
 its working directory before any on ``PYTHONPATH``, and the two nodes would run the same
-code. Each node's lines say whether its grasps ran in trees.
+code. Each node's lines say whether its grasps ran in trees, and after the first round the
+two nodes' code versions are printed (from a bag of each), with a warning if they are one.
 
 One node with 2 workers and an empty bag directory, its cost log on
 (``PROJECTION_SERVER_COST_LOG``, :mod:`projection_server.workers.cost`); each round asks
@@ -101,6 +102,16 @@ def start_node(server: str, params: dict, log: Path, executable: str):
         yield proc
 
 
+def code_of(bags: Path) -> str | None:
+    """The code version in the ``/projection/info`` of a bag in ``bags`` (a node's)."""
+    from projection_server.bags import read_bag, TOPICS
+
+    for bag in sorted(bags.iterdir()):
+        for _, _, info in read_bag(bag, [TOPICS['info']]):
+            return info.code_version
+    return None
+
+
 def report(what: str, seconds: float, f: dict[str, float], robust: dict, best: dict) -> None:
     print(f'{what}: {seconds:.2f} s wall, floor {f["floor"]:.2f} s ({f["projections"]} '
           f'projections, {f["sim_sum"]:.1f} CPU s of Simulator.run); force {robust["F"]} N, '
@@ -176,6 +187,13 @@ def main() -> int:
                         best = {str(k): v for k, v in robust['B'].pairs}
                         choices[name].append(f'{robust["F"]}/{robust["P"]}/{best["certified"]}')
                         report(f'round {round_} {name} seed {seed}', seconds, f, robust, best)
+                if round_ == 0 and args.before:
+                    versions = {code: code_of(nodes[code][3]) for code in codes}
+                    same = versions['after'] == versions['before']
+                    print(f'# code versions: after {versions["after"]}, before '
+                          f'{versions["before"]}' + ('; THE SAME: both nodes run one code, '
+                                                     'and the comparison is of noise'
+                                                     if same else ''), flush=True)
     finally:
         rclpy.try_shutdown()
     harness.medians(rows)
