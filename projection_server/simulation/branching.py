@@ -21,9 +21,9 @@ projection at a time. Every child dies with its parent (``PR_SET_PDEATHSIG``): s
 process that called :func:`run_tree` stops its whole tree.
 
 Where the worlds copy, no process need be forked at all: :func:`run_in_process` runs the
-whole tree in the calling process, reporting each leaf there. A forked root costs a worker
-more than a grasp's shared approach saves (copy-on-write of the pages its child touches:
-bench/RESULTS.md); in the process, a tree costs only its copies.
+whole tree in the calling process, reporting each leaf there. A forked root costs the pages
+its child copies and, after it, the faults of the worker's own first writes to them; in the
+process, a tree costs only its copies (bench/RESULTS.md).
 """
 
 from __future__ import annotations

@@ -117,7 +117,6 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
 
     from projection_server.simulation import engines
     from projection_server.simulation.branching import start_tree
-    from projection_server.workers.run import timeline_of
 
     leaves = [(job, Path(path)) for job, path in payload]
     if engines.get(leaves[0][0].settings(settings).physics.engine).copyable:
@@ -129,13 +128,7 @@ def _tree(conn: Any, simulator: Any, payload: list[tuple[Any, str]], settings: A
         return leaves[index][1].with_name(leaves[index][1].name + '.result')
 
     def report(index: int, result: Any, ok: bool) -> None:   # in the leaf's process
-        if ok:   # the finished projection: its timeline, from the records it has in memory
-            # The leaf's own steps: its process's clock began at its fork, or at its copy.
-            start = time.process_time()
-            cpu = start - result.cpu_from
-            result = timeline_of(result, leaves[index][1])
-            cost.record('leaf', str(leaves[index][1]), end=time.time(), sim_cpu=cpu,
-                        timeline_cpu=time.process_time() - start)
+        result = _leaf_result(result, ok, leaves[index][1])
         ended(index).write_bytes(pickle.dumps(LeafResult(index, result, ok)))
         os.write(writer, index.to_bytes(4, 'little'))   # one write, under PIPE_BUF: atomic
 
@@ -188,16 +181,9 @@ def _tree_in_process(conn: Any, simulator: Any, leaves: list[tuple[Any, Path]],
     it ends, then the :class:`Project` commands that came meanwhile (another query's
     projection waits for a leaf, not for the tree)."""
     from projection_server.simulation.branching import run_in_process
-    from projection_server.workers.run import timeline_of
 
     def report(index: int, result: Any, ok: bool) -> None:
-        if ok:
-            start = time.process_time()
-            cpu = start - result.cpu_from
-            result = timeline_of(result, leaves[index][1])
-            cost.record('leaf', str(leaves[index][1]), end=time.time(), sim_cpu=cpu,
-                        timeline_cpu=time.process_time() - start)
-        conn.send(LeafResult(index, result, ok))
+        conn.send(LeafResult(index, _leaf_result(result, ok, leaves[index][1]), ok))
         while conn.poll():
             command = conn.recv()
             if not isinstance(command, Project):   # Close: the tree goes with the worker
@@ -209,6 +195,22 @@ def _tree_in_process(conn: Any, simulator: Any, leaves: list[tuple[Any, Path]],
     cost.record('tree', str(leaves[0][1]), start=start, end=time.time(),
                 cpu=time.process_time() - cpu, leaves=[os.path.basename(b) for _, b in leaves])
     conn.send(TreeEnded(complete))
+
+
+def _leaf_result(result: Any, ok: bool, bag: Path) -> Any:
+    """What a tree's leaf answers: a finished projection's timeline, from the records it
+    has in memory, or the error as it is; the leaf's cost logged."""
+    from projection_server.workers.run import timeline_of
+
+    if not ok:
+        return result
+    # The leaf's own steps: its clock began at its fork, its copy or the tree's start.
+    start = time.process_time()
+    cpu = start - result.cpu_from
+    timeline = timeline_of(result, bag)
+    cost.record('leaf', str(bag), end=time.time(), sim_cpu=cpu,
+                timeline_cpu=time.process_time() - start)
+    return timeline
 
 
 def _children_cpu() -> float:
