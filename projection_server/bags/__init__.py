@@ -62,7 +62,7 @@ from projection_server.bags.reader import read_bag, read_records, records_of
 from projection_server.bags.schema import (INTERFACE_PACKAGE, is_latched, LATCHED,
                                            message_definitions, offered_qos, PARTICLES_NS,
                                            Record, REFERENCE_LINKS, robot_description_topic,
-                                           TOPICS, typestore)
+                                           TfBlock, TOPICS, typestore)
 from projection_server.bags.writer import BagWriter
 
 __all__ = [
@@ -74,6 +74,7 @@ __all__ = [
     'REFERENCE_LINKS',
     'Record',
     'TOPICS',
+    'TfBlock',
     'is_latched',
     'message_definitions',
     'offered_qos',

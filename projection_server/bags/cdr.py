@@ -9,6 +9,8 @@ import functools
 import struct
 from typing import Any, Callable, TYPE_CHECKING
 
+import numpy as np
+
 from projection_server.bags.schema import typestore
 
 if TYPE_CHECKING:
@@ -27,7 +29,8 @@ class CdrTemplate:
     no pattern matches. :meth:`pack` takes the varying numbers in the order of the message
     definition and returns the CDR bytes (little endian, with its encapsulation header)
     that rosbags' ``serialize_cdr`` gives of the message with those numbers: the message is
-    one ``struct`` format of constant byte runs and numbers.
+    one ``struct`` format of constant byte runs and numbers. :meth:`pack_rows` packs many
+    messages at once, from an array of their numbers.
     """
 
     def __init__(self, store: Typestore, msgtype: str, prototype: Any,
@@ -41,10 +44,16 @@ class CdrTemplate:
         self._message(prototype, msgtype, '')
         fmt, consts, args, count = '<', {}, [], 0
         run: list[bytes] = []
+        offset = 0
+        fields: list[tuple[int, str]] = []   # each number's (byte offset, struct code)
         for kind, value in [*self._tokens, ('end', None)]:
             if kind == 'c':
                 run.append(value)
+                offset += len(value)
                 continue
+            if kind == 'v':
+                fields.append((offset, value))
+                offset += struct.calcsize('<' + value)
             if run:
                 name = f'c{len(consts)}'
                 consts[name] = b''.join(run)
@@ -61,7 +70,22 @@ class CdrTemplate:
         # One call of a compiled struct format, as rosbags' serializers are generated code.
         self.pack: Callable[[Any], bytes] = eval(   # noqa: S307 (generated, no input)
             f'lambda v: pack({", ".join(args)})', consts)
+        self._base = np.frombuffer(self.pack([0] * count), dtype=np.uint8)
+        self._runs = _runs(fields)
         del self._tokens
+
+    def pack_rows(self, values: np.ndarray) -> bytes:
+        """The messages of each row of ``values`` (n x :attr:`count`: each row the numbers
+        :meth:`pack` takes), one after the other: n x :attr:`size` bytes, each message the
+        bytes :meth:`pack` gives of its row (an integer field takes its row's value, which
+        must be a whole number; numpy writes the same little-endian IEEE and two's-complement
+        bytes as ``struct``)."""
+        n = len(values)
+        out = np.tile(self._base, (n, 1))
+        for offset, dtype, first, width in self._runs:
+            end = offset + dtype.itemsize * width
+            out[:, offset:end].view(dtype)[:] = values[:, first:first + width]
+        return out.tobytes()
 
     def prototype(self) -> Any:
         """A copy of the message the template was made of."""
@@ -112,6 +136,21 @@ class CdrTemplate:
     def _message(self, message: Any, msgtype: str, prefix: str) -> None:
         for name, desc in self._store.get_msgdef(msgtype).fields:
             self._value(desc, getattr(message, name), prefix + name)
+
+
+def _runs(fields: list[tuple[int, str]]) -> list[tuple[int, np.dtype, int, int]]:
+    """The numbers of a message as runs of adjacent ones of one type: ``(byte offset,
+    dtype, index of the first, how many)`` each."""
+    runs: list[list[Any]] = []
+    for index, (offset, code) in enumerate(fields):
+        dtype = np.dtype('<' + code)
+        last = runs[-1] if runs else None
+        if (last is not None and last[1] == dtype
+                and last[0] + dtype.itemsize * last[3] == offset):
+            last[3] += 1
+        else:
+            runs.append([offset, dtype, index, 1])
+    return [tuple(run) for run in runs]
 
 
 # Base type -> (struct code, size); the strings are handled apart.

@@ -24,6 +24,7 @@ __all__ = [
     'REFERENCE_LINKS',
     'Record',
     'TOPICS',
+    'TfBlock',
     'TOPIC_TYPES',
     'is_latched',
     'message_definitions',
@@ -156,6 +157,8 @@ class Record(NamedTuple):
 
     * ``info``: the ``ProjectionInfo`` message;
     * ``tf_static``, ``tf``: ``[(parent frame, child frame, (x, y, z), (x, y, z, w)), ...]``;
+    * ``tf_block``: the ``/tf`` of many samples, as the monitor keeps it (a bag read back
+      gives a ``tf`` record per message instead): a :class:`TfBlock`, at its first time;
     * ``contacts``: ``[(body_a, link_a, body_b, link_b, normal force, normal), ...]``, the
       normal ``(x, y, z)`` pointing from b to a;
     * ``gripper``: ``(name, command, finger links)``;
@@ -172,3 +175,13 @@ class Record(NamedTuple):
     kind: str
     t_ns: int
     data: Any
+
+
+class TfBlock(NamedTuple):
+    """The ``/tf`` of n samples that have the same k frames: their times [ns], the frames
+    ``((parent, child), ...)`` and the poses, as in the messages."""
+
+    times: Any          # (n,) int64 [ns]
+    frames: tuple[tuple[str, str], ...]
+    positions: Any      # (n, k, 3) [m]
+    quaternions: Any    # (n, k, 4) (x, y, z, w)

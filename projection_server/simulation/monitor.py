@@ -36,7 +36,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from projection_server.bags import (CdrTemplate, PARTICLES_NS, Record,
-                                    robot_description_topic, TOPICS, typestore)
+                                    robot_description_topic, TfBlock, TOPICS, typestore)
 from projection_server.simulation.physics import ContactSample, Shape
 
 if TYPE_CHECKING:
@@ -46,6 +46,7 @@ if TYPE_CHECKING:
 __all__ = ['ContactAggregator', 'Monitor', 'WORLD_FRAME', 'robot_description']
 
 WORLD_FRAME = 'world'
+FLUSH_SAMPLES = 256   # samples held at most before they are written (:meth:`Monitor.flush`)
 _MSG = 'projection_interfaces/msg/'
 
 
@@ -62,7 +63,8 @@ class Monitor:
         self.physics = physics
         self.bag = bag
         self._task_state = getattr(task, 'state', None)
-        self.records: list[Record] = []
+        self._records: list[Record] = []
+        self._pending: list[tuple[int, list[Any]]] = []   # samples not written yet
         self.contacts = ContactAggregator(physics)
         physics.step_hooks.append(self.contacts.add_step)
         # The robot's links hang off their URDF parents (a tf chain under the robot);
@@ -71,8 +73,8 @@ class Monitor:
                          for body in physics.bodies.values() if body.driven}
         self._frames: list[tuple[Any, ...]] | None = None
         self._tf: tuple[tuple[str, str], ...] = ()
-        self._tf_pack: Any = None
-        self._frame_poses = physics.frame_poses
+        self._tf_template: CdrTemplate | None = None
+        self._recorder: Any = None   # the frames' poses: Physics.frame_recorder
         self._clock_pack = _clock_template().pack
         self._grippers: dict[tuple[Any, str], tuple[Any, tuple[str, str, list[str]]]] = {}
         self._objects: tuple[tuple[str, ...] | None, Any] = (None, None)   # names, their pack
@@ -85,12 +87,12 @@ class Monitor:
         bag = self.bag
         message = bag.new(_MSG + 'ProjectionInfo', header=_header(0), **info)
         bag.write(TOPICS['info'], message, 0)
-        self.records.append(Record('info', 0, message))
+        self._records.append(Record('info', 0, message))
         static = [(WORLD_FRAME, b.name, *self.physics.pose(b.name))
                   for b in self.physics.bodies.values() if b.static]
         bag.write(TOPICS['tf_static'], bag.new('tf2_msgs/msg/TFMessage', transforms=[
             _transform(0, *frame) for frame in static]), 0)
-        self.records.append(Record('tf_static', 0, static))
+        self._records.append(Record('tf_static', 0, static))
         robots = [b for b in self.physics.bodies.values() if b.driven and b.urdf is not None]
         for index, body in enumerate(robots):
             bag.write(robot_description_topic(body.name, index), bag.new(
@@ -99,24 +101,32 @@ class Monitor:
         if self.physics.fluids:
             self.bag.write_sample(0, [self._particles(0, 0, 0)])
 
+    @property
+    def records(self) -> list[Record]:
+        """What the monitor has logged so far (reading them first writes the samples still
+        held: :meth:`flush`)."""
+        self.flush()
+        return self._records
+
     def sample(self) -> None:
-        """One monitoring step: poses, contacts, grippers and object states."""
-        physics, records = self.physics, self.records
+        """One monitoring step: poses, contacts, grippers and object states.
+
+        The sample's poses are read now and its messages made but for ``/tf``; its
+        ``/tf`` messages are made, and its messages written, for many samples at once
+        (:meth:`flush`)."""
+        physics, records = self.physics, self._records
         t = physics.time_ns
         sec, nanosec = divmod(t, 1_000_000_000)
         if physics.shapes_changed:
+            self.flush()
             self._markers(t)
             self._frames = None
-        poses = self._poses()
-        values: list[Any] = []
-        for position, orientation in poses:
-            values += (sec, nanosec, *position, *orientation)
-        messages = [(TOPICS['tf'], 'tf2_msgs/msg/TFMessage', self._tf_pack(values)),
-                    (TOPICS['clock'], 'rosgraph_msgs/msg/Clock',
-                     self._clock_pack((sec, nanosec)))]
-        records.append(Record('tf', t, [(parent, child, position, orientation)
-                                        for (parent, child), (position, orientation)
-                                        in zip(self._tf, poses)]))
+        if self._frames is None:
+            self.flush()
+            self._plan()
+        self._recorder.add()
+        messages: list[Any] = [None, (TOPICS['clock'], 'rosgraph_msgs/msg/Clock',
+                                      self._clock_pack((sec, nanosec)))]
         if physics.fluids:
             messages.append(self._particles(t, sec, nanosec))
         contacts = self.contacts.take()
@@ -157,7 +167,34 @@ class Monitor:
                 messages.append((TOPICS['task'], _MSG + 'TaskState',
                                  _task_template(state).pack((sec, nanosec))))
                 records.append(Record('task', t, state))
-        self.bag.write_sample(t, messages)
+        self._pending.append((t, messages))
+        if len(self._pending) >= FLUSH_SAMPLES:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the samples held: their ``/tf`` messages made for all of them at once
+        (:meth:`~projection_server.bags.CdrTemplate.pack_rows`), then each sample's messages
+        in its order, and record their poses as one ``tf_block``."""
+        pending = self._pending
+        if not pending:
+            return
+        self._pending = []
+        positions, quaternions = self._recorder.take()
+        n, k = positions.shape[:2]
+        times = np.fromiter([t for t, _ in pending], np.int64, count=n)
+        values = np.empty((n, k, 9))
+        values[:, :, 0] = (times // 1_000_000_000)[:, None]
+        values[:, :, 1] = (times % 1_000_000_000)[:, None]
+        values[:, :, 2:5] = positions
+        values[:, :, 5:] = quaternions
+        template = self._tf_template
+        blob, size = template.pack_rows(values.reshape(n, k * 9)), template.size
+        topic, write = TOPICS['tf'], self.bag.write_sample
+        for i, (t, messages) in enumerate(pending):
+            messages[0] = (topic, template.msgtype, blob[i * size:(i + 1) * size])
+            write(t, messages)
+        self._records.append(Record('tf_block', pending[0][0],
+                                    TfBlock(times, self._tf, positions, quaternions)))
 
     # --- the sample's parts -------------------------------------------------------------
     def _batter(self, t: int, state: Any) -> list[tuple[str, str, bytes]]:
@@ -167,7 +204,7 @@ class Monitor:
         messages = [(TOPICS['batter'], 'std_msgs/msg/Float64MultiArray',
                      _batter_template(state.fluid, count).pack(
                          [*state.temperatures.tolist(), *state.set.astype(float).tolist()]))]
-        self.records.append(Record('batter', t, {state.fluid: (state.temperatures,
+        self._records.append(Record('batter', t, {state.fluid: (state.temperatures,
                                                                state.set)}))
         last = self._bonds.get(state.fluid)
         if last is None or not np.array_equal(last, state.bonds):
@@ -176,17 +213,12 @@ class Monitor:
                 state.fluid, len(state.bonds), 2), data=state.bonds.astype(np.uint32).ravel())
             messages.append((TOPICS['bonds'], 'std_msgs/msg/UInt32MultiArray',
                              typestore().serialize_cdr(message, 'std_msgs/msg/UInt32MultiArray')))
-            self.records.append(Record('bonds', t, {state.fluid: state.bonds}))
+            self._records.append(Record('bonds', t, {state.fluid: state.bonds}))
         return messages
 
-    def _poses(self) -> list[tuple[Any, Any]]:
-        """World poses of the moving bodies and their links, the robot's links relative to
-        their parent links, in the order of ``self._tf`` (the frames, planned once)."""
-        if self._frames is None:
-            self._plan()
-        return self._frame_poses(self._frames)
-
     def _plan(self) -> None:
+        """The frames on ``/tf``: the moving bodies and their links, a robot's links
+        relative to their parent links (the frames' order of ``self._tf``)."""
         frames, tf = [], []
         for body in self.physics.bodies.values():
             if body.static or body.group is not None:
@@ -203,7 +235,8 @@ class Monitor:
                    for link, parent in chain]
             frames.append((body.body_id, [link for link, _ in chain], chain))
         self._frames, self._tf = frames, tuple(tf)
-        self._tf_pack = _tf_template(self._tf).pack
+        self._tf_template = _tf_template(self._tf)
+        self._recorder = self.physics.frame_recorder(frames)
 
     def _markers(self, t: int) -> None:
         layout = []   # (frame, shape, offset) of each marker
@@ -230,7 +263,7 @@ class Monitor:
         template = _particles_template(tuple(
             (fluid.name, fluid.radius, fluid.color, len(positions[fluid.name]))
             for fluid in fluids))
-        self.records.append(Record('particles', t, positions))
+        self._records.append(Record('particles', t, positions))
         return TOPICS['markers'], template.msgtype, template.pack(values)
 
 

@@ -26,6 +26,7 @@ __all__ = [
     'Container',
     'ContactSample',
     'Fluid',
+    'FrameRecorder',
     'Gripper',
     'GripperBase',
     'ObjectModel',
@@ -331,7 +332,8 @@ class Physics:
       :meth:`link_name`), time (:meth:`step`, :meth:`step_unmonitored`, :attr:`time_ns`);
     * poses, as ``((x, y, z), (x, y, z, w))``: :meth:`pose` by name, ``base_pose(body)``,
       :meth:`link_poses` (a link's frame: its URDF frame), :meth:`frame_poses` (the
-      monitor's frames, in one call), :meth:`link_parent`, and the
+      monitor's frames, in one call), :meth:`frame_recorder` (the same frames, sample by
+      sample, as arrays), :meth:`link_parent`, and the
       transform algebra :meth:`multiply_transforms`, :meth:`invert_transform`,
       :meth:`rotation_matrix`, :meth:`quaternion_from_euler`; ``base_velocity(body)``;
     * contacts: :meth:`contact_points` of a body in the last step, each a tuple of
@@ -494,6 +496,11 @@ class Physics:
                 poses.append(multiply(*inverted, *pose))
         return poses
 
+    def frame_recorder(self, frames: list[tuple[int, list[int], list[tuple[int, int]] | None]]
+                       ) -> FrameRecorder:
+        """A :class:`FrameRecorder` of :meth:`frame_poses` of ``frames``."""
+        return FrameRecorder(self, frames)
+
     def link_parent(self, body_id: int, link: int) -> int:
         """The link's parent link (-1: the base)."""
         return self.client.getJointInfo(body_id, link)[16]
@@ -650,6 +657,36 @@ class Physics:
                     p = (*p[:11], tuple(-x for x in p[11]), p[12], tuple(-x for x in p[13]))
                 points.append(p)
         return points
+
+
+class FrameRecorder:
+    """The poses of a monitor's frames (:meth:`Physics.frame_poses` of ``frames``), taken
+    at each :meth:`add` and handed over as arrays by :meth:`take`: what an engine can read
+    cheaply in a step (a copy of its pose arrays) it reads then, and what it can do for
+    many samples at once (the links' poses relative to their parents) it does in
+    :meth:`take`. This one asks :meth:`Physics.frame_poses` at each sample."""
+
+    def __init__(self, physics: Physics, frames: list[tuple[int, list[int], Any]]):
+        self._frame_poses = physics.frame_poses
+        self._frames = frames
+        self._rows: list[list[tuple[Vec3, Quat]]] = []
+
+    def add(self) -> None:
+        """The frames' poses now."""
+        self._rows.append(self._frame_poses(self._frames))
+
+    def take(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(positions (n, k, 3), quaternions (n, k, 4))`` of the k frames in the n
+        samples added since the last call, the numbers :meth:`Physics.frame_poses` gave."""
+        rows, self._rows = self._rows, []
+        n = len(rows)
+        k = len(rows[0]) if rows else 0
+        poses = [pose for row in rows for pose in row]
+        positions = np.fromiter(itertools.chain.from_iterable([p for p, _ in poses]), float,
+                                count=n * k * 3).reshape(n, k, 3)
+        quaternions = np.fromiter(itertools.chain.from_iterable([q for _, q in poses]),
+                                  float, count=n * k * 4).reshape(n, k, 4)
+        return positions, quaternions
 
 
 def _sequential_sum(rows: np.ndarray) -> np.ndarray:

@@ -119,23 +119,29 @@ class Projection:
 
     def advance(self, until: int | None = None) -> None:
         """Step on to step ``until``; None: to the program's end, its duration or the
-        first sample after which the task has ``finished``."""
+        first sample after which the task has ``finished``, and write what the monitor
+        still holds (also when a step raises)."""
         physics, task, monitor = self.physics, self.task, self.monitor
         control = physics.settings.control.steps_per_control
         log = physics.settings.control.steps_per_log
         finished = None
-        if until is None:
+        to_end = until is None
+        if to_end:
             until = math.ceil(task.duration * physics.settings.physics.rate_hz - 1e-9)
             finished = getattr(task, 'finished', None)
         step = physics.step
-        while physics.step_count < until:
-            if physics.step_count % control == 0:
-                task.control(physics)
-            step()
-            if physics.step_count % log == 0:
-                monitor.sample()
-                if finished is not None and finished(physics):
-                    break
+        try:
+            while physics.step_count < until:
+                if physics.step_count % control == 0:
+                    task.control(physics)
+                step()
+                if physics.step_count % log == 0:
+                    monitor.sample()
+                    if finished is not None and finished(physics):
+                        break
+        finally:
+            if to_end:   # the samples the monitor holds go into the bag before it closes
+                monitor.flush()
 
 
 @contextlib.contextmanager

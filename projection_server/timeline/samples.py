@@ -18,6 +18,7 @@ from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numpy as np
 
+from projection_server.bags.schema import TfBlock
 from projection_server.errors import ErrorKind, ProjectionError
 from projection_server.geometry import quaternion_of
 
@@ -100,6 +101,9 @@ class Samples:
             else:   # particles, batter, bonds: they make no sample of their own
                 getattr(self, kind).setdefault(t_ns, {}).update(data)
             return
+        if kind == 'tf_block':
+            self._add_block(data)
+            return
         sample = self.by_time.get(t_ns)
         if sample is None:
             sample = self.by_time[t_ns] = Sample(t_ns / 1e9)
@@ -123,6 +127,23 @@ class Samples:
             robot, *state = data
             sample.tasks[robot] = TaskState(*state)
             sample.robots.add(robot)
+
+    def _add_block(self, block: TfBlock) -> None:
+        """The ``/tf`` of many samples (a ``tf_block``), composed for all of them at once
+        (:func:`_compose_layout`: the numbers of a ``tf`` record per sample)."""
+        moving = {child for _, child in block.frames if '/' not in child}
+        robots = {parent.split('/', 1)[0] for parent, child in block.frames
+                  if '/' in child and parent != 'world'}
+        composed = _compose_layout(block.frames, block.positions, block.quaternions)
+        by_time = self.by_time
+        for i, t_ns in enumerate(block.times.tolist()):
+            sample = by_time.get(t_ns)
+            if sample is None:
+                sample = by_time[t_ns] = Sample(t_ns / 1e9)
+            sample.poses.add_composed(block.frames, block.positions[i], block.quaternions[i],
+                                      [(p[i], r[i]) for p, r in composed])
+            sample.moving |= moving
+            sample.robots |= robots
 
     def finish(self, bag: str | os.PathLike[str]) -> tuple[Any, list[Sample]]:
         """The projection's info and its samples in time order, each with the static
@@ -190,6 +211,18 @@ class Poses:
         self._frames.update(entries)
         self.messages.append(transforms)
 
+    def add_composed(self, frames: tuple[tuple[str, str], ...], positions: np.ndarray,
+                     quaternions: np.ndarray, poses: list[tuple[np.ndarray, np.ndarray]]
+                     ) -> None:
+        """The frames ``(parent, child)`` of one tf message with their logged positions and
+        quaternions (k x 3, k x 4) and their world poses, composed already."""
+        entries: dict[str, list[Any]] = {}
+        get = entries.get
+        for (parent, child), position, quaternion, pose in zip(frames, positions,
+                                                               quaternions, poses):
+            entries[child] = [get(parent), position, quaternion, pose]
+        self._frames.update(entries)
+
     def __contains__(self, name: str) -> bool:
         return name in self._frames
 
@@ -244,17 +277,29 @@ def _compose_all(samples: list[Poses]) -> None:
         quaternions = np.fromiter(
             chain.from_iterable([frame[3] for m in messages for frame in m]),
             float, count=shape[0] * shape[1] * 4).reshape(*shape, 4)
-        composed: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for k, (parent_frame, child) in enumerate(layout):
-            position = np.ascontiguousarray(positions[:, k])
-            rotation = _matrices(quaternions[:, k])
-            parent = composed.get(parent_frame)
-            if parent is not None:
-                position = parent[0] + np.matmul(parent[1], position[:, :, None])[:, :, 0]
-                rotation = np.matmul(parent[1], rotation)
-            composed[child] = (position, rotation)
+        for (_, child), (position, rotation) in zip(
+                layout, _compose_layout(layout, positions, quaternions)):
             for poses, p, r in zip(group, position, rotation):
                 poses._frames[child][3] = (p, r)
+
+
+def _compose_layout(layout: tuple[tuple[str, str], ...], positions: np.ndarray,
+                    quaternions: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The world poses (positions (n, 3), rotations (n, 3, 3)) of each frame of
+    ``layout`` in n messages of those frames (``positions`` (n, k, 3), ``quaternions``
+    (n, k, 4)): a frame whose parent is a frame before it is composed with it."""
+    composed: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    out = []
+    for k, (parent_frame, child) in enumerate(layout):
+        position = np.ascontiguousarray(positions[:, k])
+        rotation = _matrices(quaternions[:, k])
+        parent = composed.get(parent_frame)
+        if parent is not None:
+            position = parent[0] + np.matmul(parent[1], position[:, :, None])[:, :, 0]
+            rotation = np.matmul(parent[1], rotation)
+        composed[child] = (position, rotation)
+        out.append((position, rotation))
+    return out
 
 
 def _matrices(q: np.ndarray) -> np.ndarray:

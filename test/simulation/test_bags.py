@@ -140,10 +140,11 @@ def _layouts():
 def test_a_template_gives_the_bytes_of_rosbags_serializer(name):
     """Each per-sample message of the monitor, a fixed and a variable-size one, serialized
     from its template with random numbers is byte for byte rosbags' serialization of the
-    message with those numbers."""
+    message with those numbers, one message at a time and five at once (``pack_rows``)."""
     template = dict(_layouts())[name]
     store = typestore()
     rng = np.random.default_rng(len(name))
+    rows = []
     for _ in range(5):
         message = _randomized(template.prototype(), template.variable, rng)
         expected = bytes(store.serialize_cdr(message, template.msgtype))
@@ -152,6 +153,11 @@ def test_a_template_gives_the_bytes_of_rosbags_serializer(name):
         assert template.pack(values) == expected
         decoded = store.deserialize_cdr(template.pack(values), template.msgtype)
         assert _numbers(decoded, template.variable) == values
+        rows.append(values)
+    # Many messages at once, from an array of their numbers: the same bytes, one after
+    # the other.
+    packed = template.pack_rows(np.array(rows, dtype=float).reshape(len(rows), -1))
+    assert packed == b''.join(template.pack(values) for values in rows)
 
 
 @pytest.mark.parametrize('name', ['bag', 'a bag: #2'])

@@ -116,6 +116,54 @@ def test_fingers_closed_on_nothing_stop_at_their_joint_limits(make_scenario, eng
     assert force == pytest.approx(20.0, rel=0.1)   # PyBullet's PR2 motor: 18.4 N of it
 
 
+@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
+@pytest.mark.parametrize('robot', ['panda', 'pr2'])
+def test_a_frame_recorder_gives_the_poses_of_frame_poses_bit_for_bit(make_scenario, engine,
+                                                                      robot):
+    # The monitor's frames (a robot's links as a chain relative to their parents, the egg
+    # in the world) read sample by sample and handed over as arrays: the numbers that
+    # frame_poses gives at each sample, to the last bit, while the fingers close.
+    from projection_server.simulation.monitor import Monitor
+
+    scenario = make_scenario()
+    if robot == 'panda':
+        scenario['entities'][1] = copy.deepcopy(PANDA)
+    name = scenario['entities'][1]['name']
+    settings = load_settings().for_projection('plan', {'engine': engine})
+    session = engines.get(engine).open()
+    try:
+        physics = session.build_world(parse_scenario(scenario), settings, tool_control=True)
+        monitor = Monitor(physics, bag=None)
+        monitor._plan()
+        frames = monitor._frames
+        assert any(chain for _, _, chain in frames)   # some links relative to parents
+        recorder = physics.frame_recorder(frames)
+        physics.grippers[name].close(5.0, 0.1)
+        expected = []
+        for step in range(40):
+            physics.step()
+            if step % 4 == 0:
+                recorder.add()
+                expected.append(physics.frame_poses(frames))
+            if step == 20:   # what was added so far, then a new block
+                positions, quaternions = recorder.take()
+                assert positions.shape == (len(expected), len(expected[0]), 3)
+                _same_bits(positions, quaternions, expected)
+                expected = []
+        positions, quaternions = recorder.take()
+    finally:
+        session.close()
+    _same_bits(positions, quaternions, expected)
+    empty = recorder.take()
+    assert empty[0].shape[0] == 0 and empty[1].shape[0] == 0
+
+
+def _same_bits(positions, quaternions, expected):
+    assert positions.tobytes() == np.array([[p for p, _ in row] for row in expected]).tobytes()
+    assert quaternions.tobytes() == np.array([[q for _, q in row]
+                                              for row in expected]).tobytes()
+
+
 def test_a_program_or_a_shape_an_engine_cannot_run_is_refused(make_scenario):
     scenario = parse_scenario(make_scenario())
     engines.check('mujoco', 'grasp_object', scenario)

@@ -165,6 +165,10 @@ class MujocoPhysics(Physics):
                 poses.append(multiply(*inverted, *pose))
         return poses
 
+    def frame_recorder(self, frames: list[tuple[int, list[int], list[tuple[int, int]] | None]]
+                       ) -> MujocoFrameRecorder:
+        return MujocoFrameRecorder(self, frames)
+
     def link_parent(self, body_id: int, link: int) -> int:
         parent = int(self.model.body_parentid[link])
         return -1 if parent == body_id else parent
@@ -299,6 +303,101 @@ class MujocoPhysics(Physics):
             else:
                 listed.append(turned)
         return points
+
+
+class MujocoFrameRecorder:
+    """:class:`~projection_server.simulation.physics.FrameRecorder` of MuJoCo's: a sample
+    copies the frames' rows of ``xipos`` (a base: at its centre of mass), ``xpos`` (a link)
+    and ``xquat``; :meth:`take` turns the links of a chain into poses relative to their
+    parents for all samples at once, by the operations of :meth:`MujocoPhysics.
+    frame_poses` in the same order, element-wise (the same numbers)."""
+
+    def __init__(self, physics: MujocoPhysics, frames: list[tuple[int, list[int], Any]]):
+        self._physics = physics
+        entries: list[tuple[str, int]] = []   # the world poses read: (array, body id)
+        index: dict[tuple[str, int], int] = {}
+
+        def entry(kind: str, body: int) -> int:
+            key = (kind, body)
+            if key not in index:
+                index[key] = len(entries)
+                entries.append(key)
+            return index[key]
+
+        out: list[tuple[int, int]] = []   # per frame: (entry, parent's entry or -1)
+        for body_id, links, chain in frames:
+            base = entry('base', body_id)
+            out.append((base, -1))
+            if chain is None:
+                out += [(entry('link', link), -1) for link in links]
+                continue
+            world = {-1: base}
+            for link, parent in chain:
+                world[link] = entry('link', link)
+                out.append((world[link], world[parent]))
+        bases = [body for kind, body in entries if kind == 'base']
+        links = [body for kind, body in entries if kind == 'link']
+        # Entries as read: the bases first, then the links.
+        order = {key: i for i, key in enumerate([('base', b) for b in bases]
+                                                + [('link', b) for b in links])}
+        where = [order[key] for key in entries]
+        self._bases, self._links = np.array(bases, dtype=int), np.array(links, dtype=int)
+        self._quats = np.concatenate([self._bases, self._links])
+        # (frames, their entries) of those in the world; (frames, entries, parents' entries)
+        # of those relative to a parent.
+        self._direct = [[j for j, (_, parent) in enumerate(out) if parent < 0],
+                        [where[e] for e, parent in out if parent < 0]]
+        self._relative = [[j for j, (_, parent) in enumerate(out) if parent >= 0],
+                          [where[e] for e, parent in out if parent >= 0],
+                          [where[parent] for _, parent in out if parent >= 0]]
+        self._count = len(out)
+        self._rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def add(self) -> None:
+        physics = self._physics
+        self._rows.append((physics._xipos[self._bases], physics._xpos[self._links],
+                           physics._xquat[self._quats]))
+
+    def take(self) -> tuple[np.ndarray, np.ndarray]:
+        rows, self._rows = self._rows, []
+        n, k = len(rows), self._count
+        positions, quaternions = np.empty((n, k, 3)), np.empty((n, k, 4))
+        if not n or not k:
+            return positions, quaternions
+        world_p = np.concatenate([np.array([r[0] for r in rows]),
+                                  np.array([r[1] for r in rows])], axis=1)
+        world_q = np.array([r[2] for r in rows])[:, :, [1, 2, 3, 0]]   # (w, x, y, z) -> xyzw
+        frames, sources = self._direct
+        positions[:, frames] = world_p[:, sources]
+        quaternions[:, frames] = world_q[:, sources]
+        frames, children, parents = self._relative
+        if frames:
+            p, q = _relative(world_p[:, parents], world_q[:, parents],
+                             world_p[:, children], world_q[:, children])
+            positions[:, frames] = p
+            quaternions[:, frames] = q
+        return positions, quaternions
+
+
+def _relative(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """``multiply_transforms(*invert_transform(p1, q1), p2, q2)`` of each row (positions
+    (..., 3), quaternions (..., 4)): their operations, element-wise, in their order."""
+    x, y, z, w = -q1[..., 0], -q1[..., 1], -q1[..., 2], q1[..., 3]
+    vx, vy, vz = p1[..., 0], p1[..., 1], p1[..., 2]
+    cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+    dx, dy, dz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
+    ix, iy, iz = -(vx + 2 * (w * cx + dx)), -(vy + 2 * (w * cy + dy)), -(vz + 2 * (w * cz + dz))
+    vx, vy, vz = p2[..., 0], p2[..., 1], p2[..., 2]
+    cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+    dx, dy, dz = y * cz - z * cy, z * cx - x * cz, x * cy - y * cx
+    bx, by, bz, bw = q2[..., 0], q2[..., 1], q2[..., 2], q2[..., 3]
+    position = np.stack([ix + (vx + 2 * (w * cx + dx)), iy + (vy + 2 * (w * cy + dy)),
+                         iz + (vz + 2 * (w * cz + dz))], axis=-1)
+    quaternion = np.stack([w * bx + x * bw + y * bz - z * by, w * by - x * bz + y * bw + z * bx,
+                           w * bz + x * by - y * bx + z * bw, w * bw - x * bx - y * by - z * bz],
+                          axis=-1)
+    return position, quaternion
 
 
 class MujocoGripper(GripperBase):
