@@ -336,6 +336,9 @@ class _Discarded:
     def write_sample(self, t_ns: int, messages: Any) -> None:
         pass
 
+    def write_samples(self, samples: Any) -> None:
+        pass
+
 
 def bare_projection(client: Any, job: Job, settings: Settings) -> Projection:
     """``job``'s world and task in ``client`` as a projection builds them, at step 0, with

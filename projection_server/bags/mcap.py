@@ -140,6 +140,34 @@ def writer_class() -> type:
                     self.close_chunk()
                     offset = None
 
+        def write_batches(self, batches: list[tuple[int, list[tuple[Any, bytes]]]]) -> None:
+            """:meth:`write_many` of each ``(timestamp, batch)``, in one call."""
+            if not batches:
+                return
+            self.message_start_time = min(batches[0][0], self.message_start_time)
+            self.message_end_time = max(batches[-1][0], self.message_end_time)
+            stats, pack = self.channel_stats, _MCAP_MESSAGE.pack
+            offset = None
+            for timestamp, batch in batches:
+                for connection, data in batch:
+                    if offset is None:   # a chunk's first message of the batches
+                        chunk = self.chunk
+                        chunk.message_start_time = min(timestamp, chunk.message_start_time)
+                        msgs, bio = chunk.msgs, chunk.bio
+                        offset = bio.tell()
+                    cid = connection.id
+                    stats[cid] += 1
+                    msgs[cid].append((timestamp, offset))
+                    bio.write(pack(0x05, 22 + len(data), cid, 0, timestamp, timestamp))
+                    bio.write(data)
+                    offset += 31 + len(data)
+                    if offset > 2**20:
+                        chunk.message_end_time = max(timestamp, chunk.message_end_time)
+                        self.close_chunk()
+                        offset = None
+                if offset is not None:
+                    chunk.message_end_time = max(timestamp, chunk.message_end_time)
+
         def close_chunk(self) -> None:
             # rosbags' own, with each channel's message index packed in one call instead
             # of two calls per message.
@@ -216,6 +244,21 @@ def writer_class() -> type:
                 self.min_timestamp = timestamp
             if timestamp > self.max_timestamp:
                 self.max_timestamp = timestamp
+
+        def write_batches(self, batches: list[tuple[int, list[tuple[Any, bytes]]]]) -> None:
+            """:meth:`write_many` of each ``(timestamp, batch)``, the timestamps in order."""
+            if not isinstance(self.storage, _Mcap):
+                for timestamp, batch in batches:
+                    self.write_many(timestamp, batch)
+                return
+            self.storage.write_batches(batches)
+            counts = self.counts
+            for _, batch in batches:
+                for connection, _ in batch:
+                    counts[connection.id] += 1
+            if batches:
+                self.min_timestamp = min(self.min_timestamp, batches[0][0])
+                self.max_timestamp = max(self.max_timestamp, batches[-1][0])
 
         def write(self, connection: Any, timestamp: int, data: bytes) -> None:
             # The connections are this writer's own: no search of the list for them.

@@ -81,6 +81,31 @@ class BagWriter:
         if batch:
             self._write_many(t_ns, batch)
 
+    def write_samples(self, samples: Iterable[tuple[int, list[tuple[str, str, bytes]]]]
+                      ) -> None:
+        """:meth:`write_sample` of each ``(t_ns, messages)``, the times in order: the same
+        bytes, in one call of the storage's where it can."""
+        write_batches = getattr(self._writer, 'write_batches', None)
+        connections = self._connections
+        batches = []
+        for t_ns, messages in samples:
+            batch = []
+            for topic, _, data in messages:
+                connection = connections.get(topic)
+                if connection is None:
+                    break
+                batch.append((connection, data))
+            else:
+                if write_batches is not None:
+                    batches.append((t_ns, batch))
+                    continue
+            if batches:   # what came before, then this sample as write_sample writes it
+                write_batches(batches)
+                batches = []
+            self.write_sample(t_ns, messages)
+        if batches:
+            write_batches(batches)
+
     def template(self, msgtype: str, prototype: Any,
                  variable: tuple[str, ...]) -> CdrTemplate:
         """:class:`CdrTemplate` of ``prototype`` (kept per process: see :func:`template`)."""

@@ -107,6 +107,9 @@ class _SharedLog:
     def write_sample(self, t_ns: int, messages: Any) -> None:
         self.calls.append(('write_sample', (t_ns, list(messages))))
 
+    def write_samples(self, samples: Any) -> None:
+        self.calls.append(('write_samples', (list(samples),)))
+
 
 def _root(simulator: Any, group: list[tuple[int, tuple[Job, Path]]], settings: Settings,
           report: Report) -> int:

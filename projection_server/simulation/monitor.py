@@ -189,10 +189,10 @@ class Monitor:
         values[:, :, 5:] = quaternions
         template = self._tf_template
         blob, size = template.pack_rows(values.reshape(n, k * 9)), template.size
-        topic, write = TOPICS['tf'], self.bag.write_sample
-        for i, (t, messages) in enumerate(pending):
-            messages[0] = (topic, template.msgtype, blob[i * size:(i + 1) * size])
-            write(t, messages)
+        topic, msgtype = TOPICS['tf'], template.msgtype
+        for i, (_, messages) in enumerate(pending):
+            messages[0] = (topic, msgtype, blob[i * size:(i + 1) * size])
+        self.bag.write_samples(pending)
         self._records.append(Record('tf_block', pending[0][0],
                                     TfBlock(times, self._tf, positions, quaternions)))
 

@@ -197,9 +197,11 @@ def test_a_bags_files_are_those_rosbags_writes(tmp_path, name):
     assert (ours / f'{name}.mcap').read_bytes() == (theirs / f'{name}.mcap').read_bytes()
 
 
-def test_a_samples_messages_written_at_once_are_the_bytes_of_rosbags_writer(tmp_path):
+@pytest.mark.parametrize('way', ['write_sample', 'write_samples'])
+def test_a_samples_messages_written_at_once_are_the_bytes_of_rosbags_writer(tmp_path, way):
     """``write_sample`` (a monitoring step's messages in one call, topics new and old, and
-    chunks that fill up in the middle of a sample) writes rosbags' own files."""
+    chunks that fill up in the middle of a sample) and ``write_samples`` (seven samples a
+    call, a new topic in the middle of one) write rosbags' own files."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     from projection_server.bags import offered_qos
@@ -218,8 +220,12 @@ def test_a_samples_messages_written_at_once_are_the_bytes_of_rosbags_writer(tmp_
     ours.parent.mkdir()
     theirs.parent.mkdir()
     with BagWriter(ours) as bag:
-        for t, messages in samples:
-            bag.write_sample(t, messages)
+        if way == 'write_sample':
+            for t, messages in samples:
+                bag.write_sample(t, messages)
+        else:
+            for first in range(0, len(samples), 7):
+                bag.write_samples(samples[first:first + 7])
     with Writer(theirs, version=9, storage_plugin=StoragePlugin.MCAP) as bag:
         connections = {}
         for t, messages in samples:
