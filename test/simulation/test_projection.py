@@ -61,3 +61,47 @@ def test_translating_something_else_than_a_bag_fails_clearly(tmp_path):
     with pytest.raises(ProjectionError) as info:
         translate_bag(tmp_path / 'missing')
     assert info.value.kind == 'bag_error'
+
+
+@pytest.fixture(scope='module')
+def simulator():
+    from projection_server.simulation.runner import Simulator
+
+    simulator = Simulator()
+    yield simulator
+    simulator.close()
+
+
+@pytest.mark.parametrize('engine', ['pybullet', 'mujoco'])
+def test_a_projection_stopped_by_an_error_keeps_every_sample_in_its_bag(
+        simulator, make_scenario, tmp_path, engine):
+    # The monitor holds its samples and writes them many at once: a step that raises (a
+    # cancelled run on the stand-in robot) still leaves them all in the bag, which gives
+    # the timeline of the records, up to the last sample.
+    from projection_server.bags import BagWriter
+    from projection_server.settings import load_settings
+    from projection_server.simulation.job import Job
+    from projection_server.simulation.runner import Projection
+    from projection_server.timeline import translate_records
+
+    class Stop(Exception):
+        pass
+
+    job = Job.checked(make_scenario(), 'grasp_object', {'force': 5.0, 'position': 0.0},
+                      {'engine': engine})
+    with BagWriter(tmp_path / 'stopped') as bag:
+        projection = Projection(simulator, job, load_settings(), bag)
+        physics = projection.physics
+        stop_at = physics.settings.control.steps_per_log * 100 + 1   # after 100 samples
+
+        def hook():
+            if physics.step_count == stop_at:
+                raise Stop
+
+        physics.step_hooks.append(hook)
+        with pytest.raises(Stop):
+            projection.advance()
+    timeline = translate_records(projection.monitor.records, tmp_path / 'stopped',
+                                 projection.scenario)
+    assert timeline['meta']['samples'] == 100
+    assert translate_bag(tmp_path / 'stopped') == timeline
