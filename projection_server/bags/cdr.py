@@ -87,6 +87,9 @@ class CdrTemplate:
             out[:, offset:end].view(dtype)[:] = values[:, first:first + width]
         return out.tobytes()
 
+    def __deepcopy__(self, memo: dict[int, Any]) -> CdrTemplate:
+        return self   # it does not change once made: a copied monitor shares its templates
+
     def prototype(self) -> Any:
         """A copy of the message the template was made of."""
         return copy.deepcopy(self._prototype)
