@@ -7,10 +7,13 @@ other part of the project but its error.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import functools
 import os
 from pathlib import Path
 from typing import Any, NamedTuple, TYPE_CHECKING
+
+import numpy as np
 
 from projection_server.errors import ErrorKind, ProjectionError
 
@@ -177,11 +180,23 @@ class Record(NamedTuple):
     data: Any
 
 
-class TfBlock(NamedTuple):
+@dataclass(frozen=True, eq=False)
+class TfBlock:
     """The ``/tf`` of n samples that have the same k frames: their times [ns], the frames
-    ``((parent, child), ...)`` and the poses, as in the messages."""
+    ``((parent, child), ...)`` and the poses, as in the messages. Two are equal when all of
+    these are (the numbers compared as ``==`` compares floats)."""
 
     times: Any          # (n,) int64 [ns]
     frames: tuple[tuple[str, str], ...]
     positions: Any      # (n, k, 3) [m]
     quaternions: Any    # (n, k, 4) (x, y, z, w)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, TfBlock):
+            return NotImplemented
+        return (self.frames == other.frames
+                and all(np.array_equal(a, b) for a, b in (
+                    (self.times, other.times), (self.positions, other.positions),
+                    (self.quaternions, other.quaternions))))
+
+    __hash__ = None   # type: ignore[assignment]   (numpy arrays are not hashable)

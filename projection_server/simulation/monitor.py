@@ -205,7 +205,7 @@ class Monitor:
                      _batter_template(state.fluid, count).pack(
                          [*state.temperatures.tolist(), *state.set.astype(float).tolist()]))]
         self._records.append(Record('batter', t, {state.fluid: (state.temperatures,
-                                                               state.set)}))
+                                                                state.set)}))
         last = self._bonds.get(state.fluid)
         if last is None or not np.array_equal(last, state.bonds):
             self._bonds[state.fluid] = state.bonds

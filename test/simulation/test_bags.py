@@ -315,3 +315,17 @@ def test_a_task_without_a_state_writes_no_task_states(tmp_path, make_scenario):
     topics = {topic for topic, _, _ in read_bag(tmp_path / 'wait')}
     assert '/tf' in topics and '/robot_description' in topics
     assert '/projection/task' not in topics
+
+
+def test_tf_blocks_are_equal_when_their_frames_times_and_poses_are():
+    from projection_server.bags import TfBlock
+
+    frames = (('world', 'egg1'),)
+    poses = np.arange(6.0).reshape(2, 1, 3), np.arange(8.0).reshape(2, 1, 4)
+    block = TfBlock(np.array([1, 2]), frames, *poses)
+    assert block == TfBlock(np.array([1, 2]), frames, poses[0].copy(), poses[1].copy())
+    moved = poses[0].copy()
+    moved[1, 0, 2] += 1e-12
+    assert block != TfBlock(np.array([1, 2]), frames, moved, poses[1])
+    assert block != TfBlock(np.array([1, 3]), frames, *poses)
+    assert block != TfBlock(np.array([1, 2]), (('world', 'egg2'),), *poses)
