@@ -119,29 +119,11 @@ def writer_class() -> type:
 
         def write_many(self, timestamp: int, batch: list[tuple[Any, bytes]]) -> None:
             """:meth:`write` of each ``(connection, data)``, all at ``timestamp``."""
-            self.message_start_time = min(timestamp, self.message_start_time)
-            self.message_end_time = max(timestamp, self.message_end_time)
-            stats, pack = self.channel_stats, _MCAP_MESSAGE.pack
-            offset = None
-            for connection, data in batch:
-                if offset is None:   # a chunk's first message of the batch
-                    chunk = self.chunk
-                    chunk.message_start_time = min(timestamp, chunk.message_start_time)
-                    chunk.message_end_time = max(timestamp, chunk.message_end_time)
-                    msgs, bio = chunk.msgs, chunk.bio
-                    offset = bio.tell()
-                cid = connection.id
-                stats[cid] += 1
-                msgs[cid].append((timestamp, offset))
-                bio.write(pack(0x05, 22 + len(data), cid, 0, timestamp, timestamp))
-                bio.write(data)
-                offset += 31 + len(data)
-                if offset > 2**20:
-                    self.close_chunk()
-                    offset = None
+            self.write_batches([(timestamp, batch)])
 
         def write_batches(self, batches: list[tuple[int, list[tuple[Any, bytes]]]]) -> None:
-            """:meth:`write_many` of each ``(timestamp, batch)``, in one call."""
+            """:meth:`write` of each ``(connection, data)`` of each ``(timestamp, batch)``
+            (the timestamps in order), in one loop."""
             if not batches:
                 return
             self.message_start_time = min(batches[0][0], self.message_start_time)
@@ -232,24 +214,15 @@ def writer_class() -> type:
 
         def write_many(self, timestamp: int, batch: list[tuple[Any, bytes]]) -> None:
             """:meth:`write` of each ``(connection, data)``, all at ``timestamp``."""
-            if not isinstance(self.storage, _Mcap):
-                for connection, data in batch:
-                    self.write(connection, timestamp, data)
-                return
-            self.storage.write_many(timestamp, batch)
-            counts = self.counts
-            for connection, _ in batch:
-                counts[connection.id] += 1
-            if timestamp < self.min_timestamp:
-                self.min_timestamp = timestamp
-            if timestamp > self.max_timestamp:
-                self.max_timestamp = timestamp
+            self.write_batches([(timestamp, batch)])
 
         def write_batches(self, batches: list[tuple[int, list[tuple[Any, bytes]]]]) -> None:
-            """:meth:`write_many` of each ``(timestamp, batch)``, the timestamps in order."""
+            """:meth:`write` of each ``(connection, data)`` of each ``(timestamp, batch)``,
+            the timestamps in order."""
             if not isinstance(self.storage, _Mcap):
                 for timestamp, batch in batches:
-                    self.write_many(timestamp, batch)
+                    for connection, data in batch:
+                        self.write(connection, timestamp, data)
                 return
             self.storage.write_batches(batches)
             counts = self.counts

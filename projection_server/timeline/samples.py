@@ -109,12 +109,9 @@ class Samples:
             sample = self.by_time[t_ns] = Sample(t_ns / 1e9)
         if kind == 'tf':
             sample.poses.add(data)
-            moving, robots = sample.moving, sample.robots
-            for parent, child, _, _ in data:
-                if '/' not in child:
-                    moving.add(child)
-                elif parent != 'world':
-                    robots.add(parent.split('/', 1)[0])
+            moving, robots = _bodies_of([(parent, child) for parent, child, _, _ in data])
+            sample.moving |= moving
+            sample.robots |= robots
         elif kind == 'contacts':
             sample.contacts = data
         elif kind == 'gripper':
@@ -131,9 +128,7 @@ class Samples:
     def _add_block(self, block: TfBlock) -> None:
         """The ``/tf`` of many samples (a ``tf_block``), composed for all of them at once
         (:func:`_compose_layout`: the numbers of a ``tf`` record per sample)."""
-        moving = {child for _, child in block.frames if '/' not in child}
-        robots = {parent.split('/', 1)[0] for parent, child in block.frames
-                  if '/' in child and parent != 'world'}
+        moving, robots = _bodies_of(block.frames)
         composed = _compose_layout(block.frames, block.positions, block.quaternions)
         by_time = self.by_time
         for i, t_ns in enumerate(block.times.tolist()):
@@ -175,6 +170,19 @@ class Samples:
             for name, pose in self.static.items():
                 sample.poses.setdefault(name, pose)
         return self.info, samples
+
+
+def _bodies_of(frames: Iterable[tuple[str, str]]) -> tuple[set[str], set[str]]:
+    """The moving bodies and the robots of a tf message's frames ``(parent, child)``: a
+    frame without ``/`` is a body; a link frame whose parent is not the world is a link of
+    a robot's chain."""
+    moving, robots = set(), set()
+    for parent, child in frames:
+        if '/' not in child:
+            moving.add(child)
+        elif parent != 'world':
+            robots.add(parent.split('/', 1)[0])
+    return moving, robots
 
 
 def _poses(transforms: Iterable[tuple[str, str, Any, Any]]
