@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import time
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 
@@ -20,7 +21,10 @@ def own_server(name: str, params: Mapping[str, object], tmp_path_factory: Any,
     with NodeProcess([*node_command(name, params), *ros_args], log) as proc:
         proc.wait_for_service(f'/{name}/query', timeout=60.0)
         yield f'/{name}'
-    assert proc.returncode in (0, -signal.SIGINT), log.read_text()
+        stopping = time.monotonic()
+    assert proc.returncode in (0, -signal.SIGINT), (
+        f'{name} ended with {proc.returncode} {time.monotonic() - stopping:.1f} s after '
+        f'SIGINT; its log:\n{log.read_text()}')
 
 
 @contextlib.contextmanager

@@ -110,3 +110,26 @@ def test_a_scripts_node_and_its_workers_end_with_the_script(rclpy_context, node,
     assert scripts[signal.SIGKILL][0].wait(5.0) == -signal.SIGKILL
     for client in clients:
         node.destroy_client(client)
+
+
+
+def test_a_node_that_crashes_leaves_every_threads_stack_in_its_log(rclpy_context, node,
+                                                                  tmp_path):
+    """A crash in native code (here a SIGSEGV sent to a node that has answered a query)
+    is not a silent exit: its log says what happened and where each thread was."""
+    from projection_server.client.launcher import node_command, NodeProcess
+    from test.nodes import caller
+
+    name = f'crashing_{os.getpid()}'
+    log = tmp_path / 'node.log'
+    with NodeProcess(node_command(name, {'bag_dir': str(tmp_path / 'bags')}), log) as proc:
+        proc.wait_for_service(f'/{name}/query')
+        with caller(f'/{name}', node) as call:
+            answer = call(PrologQuery, 'query', PrologQuery.Request(
+                mode=PrologQuery.Request.ONCE, query='X = 1'))
+            assert answer.ok, answer.message
+        os.kill(proc.proc.pid, signal.SIGSEGV)
+        assert proc.proc.wait(20.0) == -signal.SIGSEGV
+    text = log.read_text()
+    assert 'Fatal Python error: Segmentation fault' in text, text[-3000:]
+    assert text.count('Thread 0x') >= 2, text[-3000:]   # the executor's threads too

@@ -6,6 +6,7 @@ script's :class:`~projection_server.client.launcher.NodeProcess`; they end alike
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import signal
 import sys
@@ -21,6 +22,10 @@ __all__ = ['run_node']
 
 N = TypeVar('N', bound=Node)
 
+# A shutdown still running after this many seconds writes every thread's stack to stderr
+# (a script's NodeProcess sends SIGTERM after 15 s).
+SHUTDOWN_REPORT_AFTER = 10.0
+
 
 def run_node(program: str, make: Callable[[], N], threads: Callable[[N], int],
              fatal: tuple[type[BaseException], ...], args=None) -> int:
@@ -32,6 +37,8 @@ def run_node(program: str, make: Callable[[], N], threads: Callable[[N], int],
     # SIGKILL (rclpy's signal handler turns SIGTERM into a shutdown like Ctrl-C's).
     if parent.isdigit() and not die_with_parent(int(parent), signal.SIGTERM):
         return 1
+    # A crash (SIGSEGV, SIGABRT) writes every thread's stack to stderr, the node's log.
+    faulthandler.enable()
     rclpy.init(args=args)
     node = None
     try:
@@ -45,6 +52,9 @@ def run_node(program: str, make: Callable[[], N], threads: Callable[[N], int],
         print(f'{program}: {exc}', file=sys.stderr)
         return 1
     finally:
+        # Not cancelled: a hang after main's return (atexit, the interpreter's end) is
+        # reported too, and a process that has ended reports nothing.
+        faulthandler.dump_traceback_later(SHUTDOWN_REPORT_AFTER, exit=False)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
