@@ -22,9 +22,10 @@ def own_server(name: str, params: Mapping[str, object], tmp_path_factory: Any,
         proc.wait_for_service(f'/{name}/query', timeout=60.0)
         yield f'/{name}'
         stopping = time.monotonic()
+    # The log first: a report's tail is what a reader sees.
     assert proc.returncode in (0, -signal.SIGINT), (
-        f'{name} ended with {proc.returncode} {time.monotonic() - stopping:.1f} s after '
-        f'SIGINT; its log:\n{log.read_text()}')
+        f'{log.read_text()}\n(the end of its log) {name} ended with exit code '
+        f'{proc.returncode}, {time.monotonic() - stopping:.1f} s after SIGINT')
 
 
 @contextlib.contextmanager
