@@ -7,7 +7,6 @@ runs the suite in two processes (pytest-xdist); each process has a domain of its
 from __future__ import annotations
 
 import os
-import signal
 import threading
 import time
 
@@ -64,7 +63,9 @@ def server(rclpy_context, tmp_path_factory):
     """Start the node; yield its name. Its log is kept in the test's tmp dir. Under
     pytest-xdist the processes' nodes share one bag directory: a projection one made is not
     made again by the other (the bag store is safe across processes)."""
-    from projection_server.client.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command
+    from test.nodes import running_node
+
     name = 'projection_server'
     log = tmp_path_factory.mktemp('node') / 'node.log'
     if _WORKER is None:
@@ -73,10 +74,8 @@ def server(rclpy_context, tmp_path_factory):
         bags = tmp_path_factory.getbasetemp().parent / 'session_bags'
         bags.mkdir(exist_ok=True)
     params = {**NODE_PARAMS, 'bag_dir': str(bags)}
-    with NodeProcess(node_command(name, params), log) as proc:
-        proc.wait_for_service(f'/{name}/query')
-        yield f'/{name}'
-    assert proc.returncode in (0, -signal.SIGINT), log.read_text()
+    with running_node(name, node_command(name, params), log) as fqn:
+        yield fqn
 
 
 @pytest.fixture(scope='session')

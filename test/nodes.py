@@ -4,6 +4,7 @@ parameters and remappings the module's), and a caller of its services over DDS."
 from __future__ import annotations
 
 import contextlib
+from pathlib import Path
 import signal
 import time
 from typing import Any, Callable, Iterator, Mapping, Sequence
@@ -15,10 +16,20 @@ def own_server(name: str, params: Mapping[str, object], tmp_path_factory: Any,
     """A projection_server node ``name`` with ``params`` (and ``ros_args`` such as
     remappings); yields its fully qualified name once its query service answers, and checks
     that it stopped cleanly."""
-    from projection_server.client.launcher import node_command, NodeProcess
+    from projection_server.client.launcher import node_command
 
     log = tmp_path_factory.mktemp(f'{name}_node') / 'node.log'
-    with NodeProcess([*node_command(name, params), *ros_args], log) as proc:
+    with running_node(name, [*node_command(name, params), *ros_args], log) as fqn:
+        yield fqn
+
+
+@contextlib.contextmanager
+def running_node(name: str, command: Sequence[str], log: Path) -> Iterator[str]:
+    """The node ``name`` that ``command`` starts, its output in ``log``; yields its fully
+    qualified name once its query service answers, and checks that it stopped cleanly."""
+    from projection_server.client.launcher import NodeProcess
+
+    with NodeProcess(command, log) as proc:
         proc.wait_for_service(f'/{name}/query', timeout=60.0)
         yield f'/{name}'
         stopping = time.monotonic()
