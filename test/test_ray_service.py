@@ -168,7 +168,9 @@ def same_on_both_backends(ray_query, call, text):
     assert local.ok, local.message
     strip = ('TL', 'S')
     made = [{k: v for k, v in s.items() if k not in strip} for s in solutions(r)]
-    assert made == [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    here = [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    # Both answers whole (pytest's diff of long dicts is cut at their first difference).
+    assert made == here, f'ray: {json.dumps(made)}\nlocal: {json.dumps(here)}'
     return made
 
 
