@@ -112,7 +112,6 @@ def test_a_scripts_node_and_its_workers_end_with_the_script(rclpy_context, node,
         node.destroy_client(client)
 
 
-
 def test_a_node_that_crashes_leaves_every_threads_stack_in_its_log(rclpy_context, node,
                                                                   tmp_path):
     """A crash in native code (here a SIGSEGV sent to a node that has answered a query)

@@ -166,9 +166,11 @@ def same_on_both_backends(ray_query, call, text):
     local = call(PrologQuery, 'query', Q(mode=Q.ALL_SOLUTIONS, query=text,
                                          timeout=TABLE_TIMEOUT), timeout=TABLE_TIMEOUT + 60.0)
     assert local.ok, local.message
-    strip = ('TL', 'S')
-    made = [{k: v for k, v in s.items() if k not in strip} for s in solutions(r)]
-    here = [{k: v for k, v in s.items() if k not in strip} for s in solutions(local)]
+    def answers(response):
+        return [{k: v for k, v in s.items() if k not in ('TL', 'S')}
+                for s in solutions(response)]
+
+    made, here = answers(r), answers(local)
     # Both answers whole (pytest's diff of long dicts is cut at their first difference).
     assert made == here, f'ray: {json.dumps(made)}\nlocal: {json.dumps(here)}'
     return made
